@@ -1,0 +1,510 @@
+"""The session manifest (``session.yaml``): typed records, validation and writing.
+
+The contract is shared/spec/raw-formats.md; docs/formats.md explains it. Validation is
+strict about what the pipeline relies on (kinds, roles, formats, device references, paths
+that stay inside the session folder, unique ids) and liberal elsewhere (unknown extra
+keys are kept, not rejected).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from ofbe_data.atomic import write_bytes_atomic
+from ofbe_data.errors import ManifestError
+from ofbe_data.gravity import local_gravity
+from ofbe_data.yamlio import FieldPath, YamlDocument, YamlProblem, format_field, read_yaml
+
+MANIFEST_FORMAT = "ofbe-session/1"
+MANIFEST_NAME = "session.yaml"
+KINDS = ("gravity-aligned", "rotated", "multi-position")
+ROLES = ("dut", "reference")
+FORMATS = ("ofbe-logger", "mscip-csv", "csv")
+TIME_UNITS = ("s", "ms", "us")
+ACC_UNITS = ("m/s2", "g", "counts")
+_ID_RE = re.compile(r"^[A-Za-z0-9._-]+$")
+
+
+@dataclass(frozen=True)
+class Site:
+    """Where a session was recorded; gives the local gravity magnitude.
+
+    Either ``gravity_mps2`` (an override, m/s²) or ``latitude_deg`` and ``height_m``.
+    """
+
+    latitude_deg: float | None = None
+    height_m: float | None = None
+    gravity_mps2: float | None = None
+
+    @property
+    def g_local(self) -> float:
+        """Local gravity magnitude, m/s² (override, else WGS-84 + free-air)."""
+        if self.gravity_mps2 is not None:
+            return self.gravity_mps2
+        assert self.latitude_deg is not None
+        return local_gravity(self.latitude_deg, self.height_m or 0.0)
+
+    def to_dict(self) -> dict[str, float]:
+        if self.gravity_mps2 is not None:
+            return {"gravity_mps2": self.gravity_mps2}
+        return {"latitude_deg": float(self.latitude_deg or 0.0), "height_m": float(self.height_m or 0.0)}
+
+
+@dataclass(frozen=True)
+class CsvMapping:
+    """How to read a generic ``csv`` device file (raw-formats.md, "Generic csv").
+
+    Attributes
+    ----------
+    columns
+        Column names for ``t``, ``ax``, ``ay``, ``az``.
+    time_unit
+        ``s``, ``ms`` or ``us``.
+    acc_unit
+        ``m/s2``, ``g`` or ``counts``.
+    lsb_per_g
+        Counts per g, required when ``acc_unit`` is ``counts``.
+    skip_rows
+        Lines to skip before the header line.
+    delimiter
+        Field delimiter, one character.
+    """
+
+    columns: dict[str, str]
+    time_unit: str
+    acc_unit: str
+    lsb_per_g: float | None = None
+    skip_rows: int = 0
+    delimiter: str = ","
+
+
+@dataclass(frozen=True)
+class DeviceSpec:
+    """One device of a session.
+
+    Attributes
+    ----------
+    id
+        Device id (key under ``devices``).
+    model
+        Model name, e.g. ``ADXL345``.
+    role
+        ``dut`` (gets labels) or ``reference``.
+    format
+        File format of its recordings.
+    reference_to_sensor
+        (3, 3) nominal rotation taking reference-frame vectors to this sensor's frame, or
+        None when not given (identity assumed where needed).
+    csv
+        Column/unit mapping for ``format: csv``.
+    extra
+        Further keys of the entry, kept as written.
+    """
+
+    id: str
+    model: str
+    role: str
+    format: str
+    reference_to_sensor: np.ndarray | None = None
+    csv: CsvMapping | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"model": self.model, "role": self.role, "format": self.format}
+        if self.reference_to_sensor is not None:
+            out["reference_to_sensor"] = _matrix_to_list(self.reference_to_sensor)
+        if self.csv is not None:
+            out["columns"] = dict(self.csv.columns)
+            out["time_unit"] = self.csv.time_unit
+            out["acc_unit"] = self.csv.acc_unit
+            if self.csv.lsb_per_g is not None:
+                out["lsb_per_g"] = self.csv.lsb_per_g
+            if self.csv.skip_rows:
+                out["skip_rows"] = self.csv.skip_rows
+            if self.csv.delimiter != ",":
+                out["delimiter"] = self.csv.delimiter
+        out.update(self.extra)
+        return out
+
+
+@dataclass(frozen=True)
+class RecordingSpec:
+    """One recording of a session: its id, nominal tripod setting and files per device."""
+
+    id: str
+    files: dict[str, str]
+    nominal: dict[str, float] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"id": self.id}
+        if self.nominal:
+            out["nominal"] = dict(self.nominal)
+        out["files"] = dict(self.files)
+        return out
+
+
+@dataclass(frozen=True)
+class SessionManifest:
+    """A validated ``session.yaml``.
+
+    Attributes
+    ----------
+    folder
+        The session folder (file paths are relative to it).
+    campaign, session, kind
+        Identity and kind of the session.
+    site
+        Site, giving ``g_local``.
+    power_cycle
+        Bias-instance id of this power-on period.
+    devices
+        Device specs by id, in file order.
+    recordings
+        Recordings in file order.
+    extra
+        Unknown top-level keys, kept as written.
+    """
+
+    folder: Path
+    campaign: str
+    session: str
+    kind: str
+    site: Site
+    power_cycle: int
+    devices: dict[str, DeviceSpec]
+    recordings: tuple[RecordingSpec, ...]
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def path(self) -> Path:
+        """The manifest file."""
+        return self.folder / MANIFEST_NAME
+
+    @property
+    def g_local(self) -> float:
+        """Local gravity magnitude, m/s²."""
+        return self.site.g_local
+
+    @property
+    def duts(self) -> list[DeviceSpec]:
+        """Devices under test, in file order."""
+        return [d for d in self.devices.values() if d.role == "dut"]
+
+    @property
+    def reference(self) -> DeviceSpec | None:
+        """The reference device, or None."""
+        refs = [d for d in self.devices.values() if d.role == "reference"]
+        return refs[0] if refs else None
+
+    def file_path(self, recording: RecordingSpec, device: str) -> Path:
+        """Absolute-ish path of one device's file in one recording."""
+        return self.folder / recording.files[device]
+
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {
+            "format": MANIFEST_FORMAT,
+            "campaign": self.campaign,
+            "session": self.session,
+            "kind": self.kind,
+            "site": self.site.to_dict(),
+            "power_cycle": self.power_cycle,
+            "devices": {k: d.to_dict() for k, d in self.devices.items()},
+            "recordings": [r.to_dict() for r in self.recordings],
+        }
+        out.update(self.extra)
+        return out
+
+
+def _matrix_to_list(m: np.ndarray) -> list[list[float | int]]:
+    rows: list[list[float | int]] = []
+    for row in np.asarray(m, dtype=float):
+        rows.append([int(v) if float(v).is_integer() else float(v) for v in row])
+    return rows
+
+
+class _Validator:
+    """Walks the plain data of a manifest and raises :class:`ManifestError` with lines."""
+
+    def __init__(self, path: Path, doc: YamlDocument) -> None:
+        self.path = path
+        self.doc = doc
+
+    def fail(self, where: FieldPath, expected: str, found: str) -> ManifestError:
+        return ManifestError(self.path, format_field(where), expected, found, self.doc.line_of(where))
+
+    def get(self, mapping: dict[str, Any], where: FieldPath, key: str, *, required: bool = True) -> Any:
+        if key not in mapping:
+            if required:
+                return self._missing(where, key)
+            return None
+        return mapping[key]
+
+    def _missing(self, where: FieldPath, key: str) -> Any:
+        raise ManifestError(
+            self.path, format_field([*where, key]), "this key", "it missing", self.doc.line_of(where)
+        )
+
+    def mapping(self, value: Any, where: FieldPath) -> dict[str, Any]:
+        if not isinstance(value, dict):
+            raise self.fail(where, "a mapping", _describe(value))
+        return value
+
+    def ident(self, value: Any, where: FieldPath) -> str:
+        if not isinstance(value, str) or not _ID_RE.match(value):
+            raise self.fail(where, "an id of [A-Za-z0-9._-]+", _describe(value))
+        return value
+
+    def choice(self, value: Any, where: FieldPath, choices: tuple[str, ...]) -> str:
+        if value not in choices:
+            raise self.fail(where, "one of " + ", ".join(choices), _describe(value))
+        return str(value)
+
+    def number(self, value: Any, where: FieldPath, lo: float, hi: float) -> float:
+        if isinstance(value, bool) or not isinstance(value, int | float) or not lo <= value <= hi:
+            raise self.fail(where, f"a number in [{lo:g}, {hi:g}]", _describe(value))
+        return float(value)
+
+    def integer(self, value: Any, where: FieldPath, lo: int = 0) -> int:
+        if isinstance(value, bool) or not isinstance(value, int) or value < lo:
+            raise self.fail(where, f"an integer >= {lo}", _describe(value))
+        return int(value)
+
+
+def _describe(value: Any) -> str:
+    if value is None:
+        return "nothing (null)"
+    text = repr(value)
+    if len(text) > 60:
+        text = text[:57] + "..."
+    return f"{type(value).__name__} {text}"
+
+
+def _parse_site(v: _Validator, data: dict[str, Any]) -> Site:
+    top_g = data.get("gravity_mps2")
+    site_raw = data.get("site")
+    if site_raw is None and top_g is None:
+        v._missing([], "site")
+    site = v.mapping(site_raw, ["site"]) if site_raw is not None else {}
+    g = site.get("gravity_mps2", top_g)
+    where: FieldPath = ["site", "gravity_mps2"] if "gravity_mps2" in site else ["gravity_mps2"]
+    if g is not None:
+        return Site(gravity_mps2=v.number(g, where, 9.7, 9.9))
+    lat = v.number(v.get(site, ["site"], "latitude_deg"), ["site", "latitude_deg"], -90.0, 90.0)
+    h_raw = site.get("height_m", 0.0)
+    h = v.number(h_raw, ["site", "height_m"], -500.0, 9000.0)
+    return Site(latitude_deg=lat, height_m=h)
+
+
+def _parse_rotation(v: _Validator, value: Any, where: FieldPath) -> np.ndarray:
+    try:
+        m = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise v.fail(where, "a 3x3 matrix of numbers", _describe(value)) from None
+    if m.shape != (3, 3) or not np.all(np.isfinite(m)):
+        raise v.fail(where, "a 3x3 matrix of numbers", _describe(value))
+    if not np.allclose(m @ m.T, np.eye(3), atol=2e-3) or np.linalg.det(m) < 0:
+        raise v.fail(where, "a rotation (orthonormal rows, determinant +1)",
+                     f"determinant {np.linalg.det(m):.4f} and M·Mᵀ off identity by "
+                     f"{np.abs(m @ m.T - np.eye(3)).max():.2g}")
+    return m
+
+
+def _parse_csv_mapping(v: _Validator, entry: dict[str, Any], where: list[str | int]) -> CsvMapping:
+    cols = v.mapping(v.get(entry, where, "columns"), [*where, "columns"])
+    columns: dict[str, str] = {}
+    for key in ("t", "ax", "ay", "az"):
+        name = v.get(cols, [*where, "columns"], key)
+        if not isinstance(name, str) or not name:
+            raise v.fail([*where, "columns", key], "a column name", _describe(name))
+        columns[key] = name
+    time_unit = v.choice(v.get(entry, where, "time_unit"), [*where, "time_unit"], TIME_UNITS)
+    acc_unit = v.choice(v.get(entry, where, "acc_unit"), [*where, "acc_unit"], ACC_UNITS)
+    lsb = None
+    if acc_unit == "counts":
+        lsb = v.number(v.get(entry, where, "lsb_per_g"), [*where, "lsb_per_g"], 1e-9, 1e9)
+    skip = v.integer(entry.get("skip_rows", 0), [*where, "skip_rows"])
+    delim = entry.get("delimiter", ",")
+    if not isinstance(delim, str) or len(delim) != 1 or delim in "\r\n\"":
+        raise v.fail([*where, "delimiter"], "a single delimiter character", _describe(delim))
+    return CsvMapping(columns, time_unit, acc_unit, lsb, skip, delim)
+
+
+_DEVICE_KEYS = {"model", "role", "format", "reference_to_sensor", "columns", "time_unit",
+                "acc_unit", "lsb_per_g", "skip_rows", "delimiter"}
+
+
+def _parse_devices(v: _Validator, data: dict[str, Any]) -> dict[str, DeviceSpec]:
+    raw = v.mapping(v.get(data, [], "devices"), ["devices"])
+    if not raw:
+        raise v.fail(["devices"], "at least one device", "none")
+    devices: dict[str, DeviceSpec] = {}
+    for dev_id, entry in raw.items():
+        where: list[str | int] = ["devices", str(dev_id)]
+        v.ident(dev_id, where)
+        entry = v.mapping(entry, where)
+        model = v.get(entry, where, "model")
+        if not isinstance(model, str) or not model:
+            raise v.fail([*where, "model"], "a model name", _describe(model))
+        role = v.choice(v.get(entry, where, "role"), [*where, "role"], ROLES)
+        fmt = v.choice(v.get(entry, where, "format"), [*where, "format"], FORMATS)
+        r2s = None
+        if entry.get("reference_to_sensor") is not None:
+            r2s = _parse_rotation(v, entry["reference_to_sensor"], [*where, "reference_to_sensor"])
+        csv = _parse_csv_mapping(v, entry, where) if fmt == "csv" else None
+        extra = {k: val for k, val in entry.items() if k not in _DEVICE_KEYS}
+        devices[str(dev_id)] = DeviceSpec(str(dev_id), model, role, fmt, r2s, csv, extra)
+    return devices
+
+
+def _check_kind_rules(v: _Validator, kind: str, devices: dict[str, DeviceSpec]) -> None:
+    refs = [d.id for d in devices.values() if d.role == "reference"]
+    duts = [d.id for d in devices.values() if d.role == "dut"]
+    if not duts:
+        raise v.fail(["devices"], "at least one device with role dut", "none")
+    if kind == "rotated" and len(refs) != 1:
+        raise v.fail(["devices"], "exactly one device with role reference for kind rotated",
+                     f"{len(refs)} ({', '.join(refs) or 'none'})")
+    if kind != "rotated" and refs:
+        raise v.fail(["devices", refs[0], "role"], f"no reference device for kind {kind}",
+                     "role reference")
+
+
+def _check_path(v: _Validator, folder: Path, rel: Any, where: FieldPath) -> str:
+    if not isinstance(rel, str) or not rel:
+        raise v.fail(where, "a file path relative to the session folder", _describe(rel))
+    if os.path.isabs(rel) or re.match(r"^[A-Za-z]:", rel):
+        raise v.fail(where, "a path relative to the session folder", f"absolute path {rel!r}")
+    norm = os.path.normpath(rel)
+    if norm == ".." or norm.startswith(".." + os.sep) or norm.startswith("../"):
+        raise v.fail(where, "a path that stays inside the session folder", f"{rel!r}, which escapes it")
+    real_folder = os.path.realpath(folder)
+    real = os.path.realpath(os.path.join(folder, rel))
+    if os.path.commonpath([real_folder, real]) != real_folder:
+        raise v.fail(where, "a path that stays inside the session folder",
+                     f"{rel!r}, which resolves (through a link) to {real}")
+    return rel
+
+
+def _parse_recordings(v: _Validator, data: dict[str, Any], devices: dict[str, DeviceSpec],
+                      folder: Path) -> tuple[RecordingSpec, ...]:
+    raw = v.get(data, [], "recordings")
+    if not isinstance(raw, list) or not raw:
+        raise v.fail(["recordings"], "a non-empty list of recordings", _describe(raw))
+    seen_ids: dict[str, int] = {}
+    seen_paths: dict[str, str] = {}
+    out: list[RecordingSpec] = []
+    for i, entry in enumerate(raw):
+        where: list[str | int] = ["recordings", i]
+        entry = v.mapping(entry, where)
+        rid = v.ident(v.get(entry, where, "id"), [*where, "id"])
+        if rid in seen_ids:
+            raise v.fail([*where, "id"], "unique recording ids",
+                         f"duplicate id {rid!r} (also recordings[{seen_ids[rid]}].id)")
+        seen_ids[rid] = i
+        nominal_raw = entry.get("nominal") or {}
+        nominal_raw = v.mapping(nominal_raw, [*where, "nominal"])
+        nominal: dict[str, float] = {}
+        for key, val in nominal_raw.items():
+            nominal[str(key)] = v.number(val, [*where, "nominal", str(key)], -1e6, 1e6)
+        files = v.mapping(v.get(entry, where, "files"), [*where, "files"])
+        for dev in files:
+            if dev not in devices:
+                raise v.fail([*where, "files", str(dev)], "a device declared under devices ("
+                             + ", ".join(devices) + ")", f"unknown device {dev!r}")
+        for dev in devices:
+            if dev not in files:
+                raise v.fail([*where, "files"], f"a file for declared device {dev!r}",
+                             "no entry for it")
+        clean: dict[str, str] = {}
+        for dev, rel in files.items():
+            fw: list[str | int] = [*where, "files", str(dev)]
+            rel = _check_path(v, folder, rel, fw)
+            key = os.path.normpath(rel)
+            if key in seen_paths:
+                raise v.fail(fw, "a file used by one device in one recording only",
+                             f"{rel!r}, also named at {seen_paths[key]}")
+            seen_paths[key] = format_field(fw)
+            clean[str(dev)] = rel
+        out.append(RecordingSpec(rid, clean, nominal))
+    return tuple(out)
+
+
+_TOP_KEYS = {"format", "campaign", "session", "kind", "site", "gravity_mps2", "power_cycle",
+             "devices", "recordings"}
+
+
+def parse_manifest(path: Path, doc: YamlDocument) -> SessionManifest:
+    """Validate a parsed manifest document; see :func:`load_manifest`."""
+    v = _Validator(path, doc)
+    data = v.mapping(doc.data, [])
+    fmt = v.get(data, [], "format")
+    if fmt != MANIFEST_FORMAT:
+        raise v.fail(["format"], MANIFEST_FORMAT, _describe(fmt))
+    campaign = v.ident(v.get(data, [], "campaign"), ["campaign"])
+    session = v.ident(v.get(data, [], "session"), ["session"])
+    kind = v.choice(v.get(data, [], "kind"), ["kind"], KINDS)
+    site = _parse_site(v, data)
+    power_cycle = v.integer(v.get(data, [], "power_cycle"), ["power_cycle"])
+    devices = _parse_devices(v, data)
+    _check_kind_rules(v, kind, devices)
+    recordings = _parse_recordings(v, data, devices, path.parent)
+    extra = {k: val for k, val in data.items() if k not in _TOP_KEYS}
+    return SessionManifest(path.parent, campaign, session, kind, site, power_cycle, devices,
+                           recordings, extra)
+
+
+def load_manifest(path_or_folder: str | Path) -> SessionManifest:
+    """Read and validate a session manifest.
+
+    Parameters
+    ----------
+    path_or_folder
+        The ``session.yaml`` file or the session folder holding it.
+
+    Returns
+    -------
+    SessionManifest
+
+    Raises
+    ------
+    ManifestError
+        Naming the file, the line and the field, with what was expected and found.
+    """
+    path = Path(path_or_folder)
+    if path.is_dir():
+        path = path / MANIFEST_NAME
+    if not path.is_file():
+        raise ManifestError(path, "<file>", "a session manifest file", "no such file")
+    try:
+        doc = read_yaml(path)
+    except YamlProblem as exc:
+        raise ManifestError(path, exc.field, exc.expected, exc.found, exc.line) from None
+    return parse_manifest(path, doc)
+
+
+def write_manifest(manifest: SessionManifest, path: str | Path | None = None) -> Path:
+    """Write a manifest as YAML (atomically).
+
+    Parameters
+    ----------
+    manifest
+        The manifest to write.
+    path
+        Target file; defaults to ``manifest.path``.
+
+    Returns
+    -------
+    Path
+        The written file.
+    """
+    target = Path(path) if path is not None else manifest.path
+    text = yaml.safe_dump(manifest.to_dict(), sort_keys=False, default_flow_style=None, width=100)
+    write_bytes_atomic(target, text.encode("utf-8"))
+    return target

@@ -1,0 +1,738 @@
+"""Readers and writers of the raw device files (shared/spec/raw-formats.md).
+
+Formats: ``ofbe-logger`` (SparkFun ESP32 + ADXL345 serial capture), ``mscip-csv``
+(Memsense MS-IMU3025 vendor export) and the generic ``csv``. Every reader returns a
+:class:`~ofbe_data.recording.Recording` in SI units with per-file diagnostics.
+
+Reading is vectorised: the header is located with a byte search, the body goes through
+pyarrow's CSV reader (quoting off, every field read as bytes, lines with the wrong number
+of fields sent to an invalid-row handler), and numeric validation is a regular expression
+evaluated by pyarrow over whole columns. No Python loop runs per data line.
+"""
+
+from __future__ import annotations
+
+import io
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.compute as pc
+import pyarrow.csv as pacsv
+
+from ofbe_data.atomic import write_bytes_atomic
+from ofbe_data.errors import RawFormatError
+from ofbe_data.gravity import G0
+from ofbe_data.manifest import CsvMapping, DeviceSpec
+from ofbe_data.recording import (
+    SKIP_EMPTY,
+    SKIP_FIELD_COUNT,
+    SKIP_NON_INCREASING_TIME,
+    SKIP_NON_NUMERIC,
+    SKIP_OUT_OF_RANGE,
+    Gap,
+    ReadDiagnostics,
+    Recording,
+    SkippedLine,
+)
+
+WRAP_US = 2**32
+"""``micros()`` on the ESP32 is an unsigned 32-bit counter of microseconds."""
+
+OFBE_LOGGER_COLUMNS = ("t_us", "ax", "ay", "az")
+MSCIP_TIME = "Time (s)"
+MSCIP_ACCEL = ("Accel X (g)", "Accel Y (g)", "Accel Z (g)")
+MSCIP_GYRO = ("Gyro X (deg/s)", "Gyro Y (deg/s)", "Gyro Z (deg/s)")
+MSCIP_TEMP = "Temperature (C)"
+MSCIP_COLUMNS = (MSCIP_TIME, *MSCIP_GYRO, *MSCIP_ACCEL, MSCIP_TEMP)
+
+_INT_RE = r"^\s*[+-]?\d{1,18}\s*$"
+_FLOAT_RE = r"^\s*[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d{1,3})?\s*$"
+GAP_FACTOR = 1.5
+"""A step between samples longer than this many nominal periods is a gap."""
+
+
+# --------------------------------------------------------------------------- helpers
+
+
+def _count_lines(data: bytes) -> int:
+    """Number of lines as pyarrow splits them (\\n, \\r\\n and lone \\r all end a line)."""
+    n = data.count(b"\n") + data.count(b"\r") - data.count(b"\r\n")
+    if data and data[-1:] not in (b"\n", b"\r"):
+        n += 1
+    return n
+
+
+def _line_start(data: bytes, marker: bytes) -> int:
+    """Offset of the first line that starts with ``marker``, or −1."""
+    pos = 0
+    while True:
+        idx = data.find(marker, pos)
+        if idx <= 0:
+            return idx
+        if data[idx - 1 : idx] in (b"\n", b"\r"):
+            return idx
+        pos = idx + 1
+
+
+def _next_line(data: bytes, offset: int) -> tuple[bytes, int]:
+    """The line starting at ``offset`` (without its end) and the offset after it."""
+    end = len(data)
+    for sep in (b"\n", b"\r"):
+        i = data.find(sep, offset)
+        if i != -1:
+            end = min(end, i)
+    nxt = end
+    if data[end : end + 2] == b"\r\n":
+        nxt = end + 2
+    elif end < len(data):
+        nxt = end + 1
+    return data[offset:end], nxt
+
+
+def _decode(raw: bytes) -> str:
+    return raw.decode("utf-8", errors="backslashreplace")
+
+
+def _show(raw: bytes, limit: int = 40) -> str:
+    text = repr(raw)[1:]
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+@dataclass
+class _Body:
+    """Parsed data lines of one file: validated numeric columns and their file lines."""
+
+    values: dict[str, np.ndarray]
+    lines: np.ndarray
+    lines_read: int
+    skipped: list[SkippedLine]
+
+
+def _read_body(
+    path: Path,
+    data: bytes,
+    header_offset: int,
+    header_line: int,
+    delimiter: str,
+    wanted: Mapping[str, str],
+) -> _Body:
+    """Parse the CSV body that starts with its column-name line at ``header_offset``.
+
+    Parameters
+    ----------
+    path
+        File, for messages.
+    data
+        Whole file contents.
+    header_offset, header_line
+        Byte offset and 1-based line number of the column-name line.
+    delimiter
+        Field delimiter.
+    wanted
+        Column name → ``"int"`` or ``"float"`` for the columns to return.
+
+    Returns
+    -------
+    _Body
+        Columns as int64 / float64 arrays over the valid lines only.
+    """
+    body = data[header_offset:]
+    header_raw, _ = _next_line(body, 0)
+    try:
+        names = [n.strip() for n in header_raw.decode("utf-8").split(delimiter)]
+    except UnicodeDecodeError:
+        raise RawFormatError(path, "a column-name line", _show(header_raw), header_line) from None
+    missing = [w for w in wanted if w not in names]
+    if missing:
+        raise RawFormatError(path, "columns " + ", ".join(wanted),
+                             f"{delimiter.join(names)!r} (missing {', '.join(missing)})",
+                             header_line)
+    if len(set(names)) != len(names):
+        raise RawFormatError(path, "unique column names", repr(delimiter.join(names)), header_line)
+    invalid: list[SkippedLine] = []
+
+    def on_invalid(row: pacsv.InvalidRow) -> str:
+        line = header_line - 1 + (row.number or 0)
+        invalid.append(SkippedLine(line, SKIP_FIELD_COUNT,
+                                   f"expected {row.expected_columns} fields, found {row.actual_columns}"))
+        return "skip"
+
+    try:
+        table = pacsv.read_csv(
+            pa.BufferReader(body),
+            read_options=pacsv.ReadOptions(use_threads=False, column_names=names, skip_rows=1),
+            parse_options=pacsv.ParseOptions(delimiter=delimiter, quote_char=False,
+                                             ignore_empty_lines=False,
+                                             invalid_row_handler=on_invalid),
+            convert_options=pacsv.ConvertOptions(column_types={n: pa.binary() for n in names},
+                                                 include_columns=list(wanted)),
+        )
+    except pa.ArrowInvalid as exc:
+        raise RawFormatError(path, "CSV data lines", f"unreadable data ({exc})", header_line) from None
+    lines_read = _count_lines(body) - 1
+    bad_lines = np.array(sorted(s.line for s in invalid), dtype=np.int64)
+    all_lines = np.arange(header_line + 1, header_line + 1 + lines_read, dtype=np.int64)
+    row_lines = np.setdiff1d(all_lines, bad_lines, assume_unique=True)
+    if row_lines.shape[0] != table.num_rows:  # pragma: no cover - pyarrow contract
+        raise RawFormatError(path, f"{row_lines.shape[0]} parsed rows", str(table.num_rows))
+    ok = np.ones(table.num_rows, dtype=bool)
+    empty = np.ones(table.num_rows, dtype=bool)
+    first_bad: dict[int, str] = {}
+    for name, kind in wanted.items():
+        col = table.column(name)
+        good = pc.match_substring_regex(col, _INT_RE if kind == "int" else _FLOAT_RE)
+        good_np = good.to_numpy(zero_copy_only=False)
+        empty &= (pc.binary_length(col).to_numpy(zero_copy_only=False) == 0)
+        for i in np.flatnonzero(~good_np & ok):
+            first_bad[int(i)] = f"field {name!r} is not a number: {_show(col[int(i)].as_py())}"
+        ok &= good_np
+    skipped = list(invalid)
+    for i, detail in first_bad.items():
+        if empty[i]:
+            skipped.append(SkippedLine(int(row_lines[i]), SKIP_EMPTY, "empty line"))
+        else:
+            skipped.append(SkippedLine(int(row_lines[i]), SKIP_NON_NUMERIC, detail))
+    keep = pa.array(ok)
+    values: dict[str, np.ndarray] = {}
+    for name, kind in wanted.items():
+        col = pc.utf8_trim_whitespace(pc.cast(table.column(name).filter(keep), pa.string()))
+        values[name] = pc.cast(col, pa.int64() if kind == "int" else pa.float64()).to_numpy()
+    skipped.sort(key=lambda s: s.line)
+    return _Body(values, row_lines[ok], lines_read, skipped)
+
+
+def _drop(body: _Body, bad: np.ndarray, kind: str, details: Sequence[str] | str) -> None:
+    """Remove rows flagged in ``bad`` from ``body``, recording them as skipped."""
+    idx = np.flatnonzero(bad)
+    if idx.size == 0:
+        return
+    if isinstance(details, str):
+        details = [details] * idx.size
+    for i, detail in zip(idx, details, strict=True):
+        body.skipped.append(SkippedLine(int(body.lines[i]), kind, detail))
+    body.skipped.sort(key=lambda s: s.line)
+    keep = ~bad
+    body.values = {k: v[keep] for k, v in body.values.items()}
+    body.lines = body.lines[keep]
+
+
+MAX_STEP_S = 1.0
+"""A time step longer than this (or not positive) is abnormal; a sample with abnormal
+steps on both sides whose neighbours are consistent with each other is a corrupted
+timestamp, not a gap."""
+
+
+def _clean_times(body: _Body, t: np.ndarray, max_step: float, modulus: int | None = None
+                 ) -> tuple[np.ndarray, int]:
+    """Drop corrupted or backward time stamps; undo counter wraps.
+
+    Works on whole arrays. A sample whose steps from and to its neighbours are both
+    abnormal (not positive, or longer than ``max_step``) while the step between the
+    neighbours is normal is dropped as inconsistent; remaining backward steps drop the
+    later sample. With ``modulus`` (an unsigned counter), steps are taken modulo it, so a
+    wrap is a normal step and is undone.
+
+    Parameters
+    ----------
+    body
+        Parsed body; dropped rows are removed from it and recorded as skipped.
+    t
+        (N,) raw time stamps in counter units (int64) or seconds (float64).
+    max_step
+        Longest normal step, same units as ``t``.
+    modulus
+        Counter modulus (2³² for ``micros()``), or None for plain times.
+
+    Returns
+    -------
+    t, wraps
+        Kept, unwrapped, strictly increasing times (float64, same units) and the number
+        of wraps undone.
+    """
+
+    def steps(x: np.ndarray) -> np.ndarray:
+        d = np.diff(x)
+        return d % modulus if modulus is not None else d
+
+    def abnormal(d: np.ndarray) -> np.ndarray:
+        return (d <= 0) | (d > max_step)
+
+    def backward(d: np.ndarray) -> np.ndarray:
+        return d >= modulus // 2 if modulus is not None else d <= 0
+
+    if t.size >= 3:
+        d = steps(t)
+        bridge = t[2:] - t[:-2]
+        bridge = bridge % modulus if modulus is not None else bridge
+        spike = np.zeros(t.shape, dtype=bool)
+        spike[1:-1] = abnormal(d[:-1]) & abnormal(d[1:]) & ~abnormal(bridge)
+        spike[0] = backward(d[:1])[0] and not abnormal(d[1:2])[0]
+        spike[-1] = backward(d[-1:])[0] and not abnormal(d[-2:-1])[0]
+        details = [f"time stamp {t[i]} inconsistent with its neighbours" for i in np.flatnonzero(spike)]
+        _drop(body, spike, SKIP_NON_INCREASING_TIME, details)
+        t = t[~spike]
+    for _ in range(16):
+        if t.size < 2:
+            break
+        bad = np.zeros(t.shape, dtype=bool)
+        bad[1:] = backward(steps(t))
+        if not bad.any():
+            break
+        details = [f"time stamp {t[i]} not after the previous sample" for i in np.flatnonzero(bad)]
+        _drop(body, bad, SKIP_NON_INCREASING_TIME, details)
+        t = t[~bad]
+    if t.size == 0:
+        return t.astype(np.float64), 0
+    d = steps(t)
+    wraps = int(np.count_nonzero(np.diff(t) < 0)) if modulus is not None else 0
+    out = np.empty(t.shape, dtype=np.float64)
+    out[0] = t[0]
+    out[1:] = float(t[0]) + np.cumsum(d, dtype=np.float64 if modulus is None else np.int64)
+    return out, wraps
+
+
+def find_gaps(t: np.ndarray, lines: np.ndarray, period_s: float | None) -> tuple[Gap, ...]:
+    """Gaps in a time series.
+
+    Parameters
+    ----------
+    t
+        (N,) increasing times, s.
+    lines
+        (N,) file line of each sample.
+    period_s
+        Nominal sample period, s; the median step is used when None.
+
+    Returns
+    -------
+    tuple of Gap
+        One per step longer than ``GAP_FACTOR`` periods.
+    """
+    if t.size < 2:
+        return ()
+    dt = np.diff(t)
+    period = float(np.median(dt)) if period_s is None else period_s
+    idx = np.flatnonzero(dt > GAP_FACTOR * period)
+    return tuple(
+        Gap(int(lines[i + 1]), float(t[i + 1]), float(dt[i]), int(round(dt[i] / period)) - 1)
+        for i in idx
+    )
+
+
+def _parse_utc(text: str | None) -> datetime | None:
+    if not text:
+        return None
+    try:
+        stamp = datetime.fromisoformat(text.strip().replace("Z", "+00:00"))
+    except ValueError:
+        return None
+    return stamp if stamp.tzinfo else stamp.replace(tzinfo=UTC)
+
+
+def format_utc(stamp: datetime) -> str:
+    """ISO 8601 UTC with milliseconds and a ``Z``, as both device headers write it."""
+    stamp = stamp.astimezone(UTC)
+    return stamp.strftime("%Y-%m-%dT%H:%M:%S.") + f"{stamp.microsecond // 1000:03d}Z"
+
+
+def _read_bytes(path: Path) -> bytes:
+    try:
+        return path.read_bytes()
+    except FileNotFoundError:
+        raise RawFormatError(path, "a readable data file", "no such file") from None
+    except OSError as exc:
+        raise RawFormatError(path, "a readable data file", exc.strerror or str(exc)) from None
+
+
+# --------------------------------------------------------------------------- ofbe-logger
+
+
+def _parse_logger_header(path: Path, data: bytes) -> tuple[dict[str, str], int, int, int]:
+    """Locate the ``# ofbe-logger`` header; return (keys, boot lines, column-line offset,
+    column-line number)."""
+    start = _line_start(data, b"# ofbe-logger")
+    if start < 0:
+        raise RawFormatError(path, "a '# ofbe-logger' header line", "none in the file")
+    boot_lines = _count_lines(data[:start])
+    header: dict[str, str] = {}
+    offset, line_no = start, boot_lines + 1
+    while True:
+        if offset >= len(data):
+            raise RawFormatError(path, "the column line t_us,ax,ay,az after the header",
+                                 "end of file", line_no)
+        raw, nxt = _next_line(data, offset)
+        if not raw.startswith(b"#"):
+            break
+        for token in _decode(raw[1:]).split():
+            if "=" in token:
+                key, _, value = token.partition("=")
+                header[key] = value
+        offset, line_no = nxt, line_no + 1
+    return header, boot_lines, offset, line_no
+
+
+def _header_number(path: Path, header: dict[str, str], key: str, line: int) -> float:
+    try:
+        value = float(header[key])
+    except KeyError:
+        raise RawFormatError(path, f"header key {key}=<number>", "no such key", line) from None
+    except ValueError:
+        raise RawFormatError(path, f"header key {key}=<number>", repr(header[key]), line) from None
+    if not np.isfinite(value) or value <= 0:
+        raise RawFormatError(path, f"header key {key} > 0", repr(header[key]), line)
+    return value
+
+
+def read_ofbe_logger(path: str | Path, device: str | None = None) -> Recording:
+    """Read an ``ofbe-logger`` CSV (SparkFun Thing Plus ESP32 + ADXL345).
+
+    Parameters
+    ----------
+    path
+        The file.
+    device
+        Device id to attach (defaults to the header's ``device=``).
+
+    Returns
+    -------
+    Recording
+        ``t`` in s since the logger booted (wraps of ``micros()`` undone), ``acc`` in
+        m/s² (counts / lsb_per_g · g0), saturation flagged where an axis sits at
+        −range_g·lsb_per_g or +range_g·lsb_per_g − 1.
+
+    Raises
+    ------
+    RawFormatError
+        Missing header, header keys or columns, or no valid data line.
+    """
+    path = Path(path)
+    data = _read_bytes(path)
+    header, boot_lines, col_offset, col_line = _parse_logger_header(path, data)
+    lsb = _header_number(path, header, "lsb_per_g", boot_lines + 1)
+    range_g = _header_number(path, header, "range_g", boot_lines + 1)
+    odr = _header_number(path, header, "odr_hz", boot_lines + 1) if "odr_hz" in header else None
+    wanted = {c: "int" for c in OFBE_LOGGER_COLUMNS}
+    body = _read_body(path, data, col_offset, col_line, ",", wanted)
+    limit = int(round(range_g * lsb))
+    v = body.values
+    t_bad = (v["t_us"] < 0) | (v["t_us"] >= WRAP_US)
+    counts = np.stack([v["ax"], v["ay"], v["az"]], axis=1)
+    c_bad = ((counts < -limit) | (counts > limit - 1)).any(axis=1)
+    details = [
+        f"t_us {v['t_us'][i]} outside 0..2^32-1" if t_bad[i]
+        else f"counts {counts[i].tolist()} outside {-limit}..{limit - 1}"
+        for i in np.flatnonzero(t_bad | c_bad)
+    ]
+    _drop(body, t_bad | c_bad, SKIP_OUT_OF_RANGE, details)
+    t_us, wraps = _clean_times(body, body.values["t_us"], MAX_STEP_S * 1e6, WRAP_US)
+    t = t_us / 1e6
+    v = body.values
+    counts = np.stack([v["ax"], v["ay"], v["az"]], axis=1)
+    if counts.shape[0] == 0:
+        raise RawFormatError(path, "at least one valid data line", "none", col_line)
+    saturated = ((counts == -limit) | (counts == limit - 1)).any(axis=1)
+    gaps = find_gaps(t, body.lines, 1.0 / odr if odr else None)
+    diag = ReadDiagnostics(path, col_line, body.lines_read, int(t.shape[0]), tuple(body.skipped),
+                           gaps, wraps, int(saturated.sum()), boot_lines)
+    return Recording(path, "ofbe-logger", t, counts.astype(np.float64) / lsb * G0, saturated,
+                     body.lines, _parse_utc(header.get("host_start_utc")), odr,
+                     {k: header[k] for k in header} | ({"device": device} if device else {}),
+                     diag)
+
+
+def _csv_body(columns: Sequence[pa.Array], delimiter: str = ",") -> bytes:
+    """Data lines (no header) of equal-length columns, formatted by pyarrow."""
+    table = pa.table(list(columns), names=[f"c{i}" for i in range(len(columns))])
+    buf = io.BytesIO()
+    pacsv.write_csv(table, buf, pacsv.WriteOptions(include_header=False, quoting_style="none",
+                                                   delimiter=delimiter))
+    return buf.getvalue()
+
+
+def fixed_point(values: np.ndarray, decimals: int) -> pa.Array:
+    """A pyarrow decimal array that prints ``values`` with exactly ``decimals`` decimals.
+
+    Built straight from the unscaled integers (no per-value Python work), so writing
+    a vendor-style fixed-point CSV costs about as much as writing integers.
+    """
+    ints = np.rint(np.asarray(values, dtype=np.float64) * 10.0**decimals).astype(np.int64)
+    words = np.empty((ints.shape[0], 2), dtype=np.int64)
+    words[:, 0] = ints
+    words[:, 1] = np.where(ints < 0, -1, 0)
+    return pa.Array.from_buffers(pa.decimal128(38, decimals), ints.shape[0],
+                                 [None, pa.py_buffer(words.tobytes())])
+
+
+LineHook = Callable[[list[bytes]], list[bytes]]
+
+
+def _assemble(preamble: Sequence[str], header_line: str, body: bytes,
+              corrupt: LineHook | None) -> bytes:
+    if corrupt is not None:
+        lines = body.split(b"\n")
+        trailing = lines[-1] == b""
+        lines = corrupt(lines[:-1] if trailing else lines)
+        body = b"\n".join(lines) + (b"\n" if trailing else b"")
+    head = "".join(line + "\n" for line in (*preamble, header_line))
+    return head.encode("utf-8") + body
+
+
+def write_ofbe_logger(
+    path: str | Path,
+    t_us: np.ndarray,
+    counts: np.ndarray,
+    header: Mapping[str, str],
+    boot_lines: Sequence[str] = (),
+    corrupt: LineHook | None = None,
+) -> None:
+    """Write an ``ofbe-logger`` CSV (atomically).
+
+    Parameters
+    ----------
+    path
+        Target file.
+    t_us
+        (N,) int64 microseconds since boot, not yet wrapped (written modulo 2³²).
+    counts
+        (N, 3) integer counts.
+    header
+        Header keys: ``fw``, ``board``, ``chip``, ``device``, ``odr_hz``, ``range_g``,
+        ``full_res``, ``lsb_per_g``, ``host_start_utc``.
+    boot_lines
+        Boot-noise lines written before the header.
+    corrupt
+        Optional hook that receives the data lines (bytes, no line ends) and returns
+        them modified — the simulator uses it to garble the serial link.
+    """
+    first = " ".join(f"{k}={header[k]}" for k in ("fw", "board", "chip", "device"))
+    second = " ".join(f"{k}={header[k]}" for k in ("odr_hz", "range_g", "full_res", "lsb_per_g"))
+    preamble = [*boot_lines, f"# ofbe-logger {first}", f"# {second}",
+                f"# host_start_utc={header['host_start_utc']}"]
+    counts = np.asarray(counts, dtype=np.int64)
+    cols = [pa.array(np.asarray(t_us, dtype=np.int64) % WRAP_US)]
+    cols += [pa.array(counts[:, i]) for i in range(3)]
+    data = _assemble(preamble, ",".join(OFBE_LOGGER_COLUMNS), _csv_body(cols), corrupt)
+    write_bytes_atomic(path, data)
+
+
+# --------------------------------------------------------------------------- mscip-csv
+
+
+def read_mscip_csv(path: str | Path, device: str | None = None) -> Recording:
+    """Read a Memsense MS-IMU3025 CSV export (``mscip-csv``).
+
+    Parameters
+    ----------
+    path
+        The file.
+    device
+        Device id to attach.
+
+    Returns
+    -------
+    Recording
+        ``t`` in s relative to ``Start (UTC)``, ``acc`` in m/s² (g · g0); gyro (deg/s)
+        and temperature (°C) in ``extra`` when present.
+    """
+    path = Path(path)
+    data = _read_bytes(path)
+    col_offset = _line_start(data, MSCIP_TIME.encode())
+    if col_offset < 0:
+        raise RawFormatError(path, f"a column line starting with {MSCIP_TIME!r}", "none in the file")
+    preamble = data[:col_offset]
+    col_line = _count_lines(preamble) + 1
+    header: dict[str, str] = {}
+    for raw in preamble.splitlines():
+        key, sep, value = _decode(raw).partition(",")
+        if sep:
+            header[key.strip()] = value.strip()
+    header_names = _decode(_next_line(data, col_offset)[0]).split(",")
+    wanted = {MSCIP_TIME: "float", **{c: "float" for c in MSCIP_ACCEL}}
+    wanted.update({c: "float" for c in (*MSCIP_GYRO, MSCIP_TEMP) if c in header_names})
+    body = _read_body(path, data, col_offset, col_line, ",", wanted)
+    t, _ = _clean_times(body, body.values[MSCIP_TIME], MAX_STEP_S)
+    v = body.values
+    if t.shape[0] == 0:
+        raise RawFormatError(path, "at least one valid data line", "none", col_line)
+    acc = np.stack([v[c] for c in MSCIP_ACCEL], axis=1) * G0
+    rate = None
+    if "Sample Rate (Hz)" in header:
+        try:
+            rate = float(header["Sample Rate (Hz)"])
+        except ValueError:
+            raise RawFormatError(path, "Sample Rate (Hz),<number>",
+                                 repr(header["Sample Rate (Hz)"])) from None
+    gaps = find_gaps(t, body.lines, 1.0 / rate if rate else None)
+    extra = {c: v[c] for c in (*MSCIP_GYRO, MSCIP_TEMP) if c in v}
+    diag = ReadDiagnostics(path, col_line, body.lines_read, int(t.shape[0]), tuple(body.skipped),
+                           gaps)
+    hdr = header | ({"device": device} if device else {})
+    return Recording(path, "mscip-csv", t, acc, np.zeros(t.shape[0], dtype=bool), body.lines,
+                     _parse_utc(header.get("Start (UTC)")), rate, hdr, diag, extra)
+
+
+def write_mscip_csv(
+    path: str | Path,
+    t_s: np.ndarray,
+    acc_g: np.ndarray,
+    gyro_dps: np.ndarray,
+    temperature_c: np.ndarray,
+    *,
+    serial: str,
+    rate_hz: float,
+    start_utc: str,
+) -> None:
+    """Write a Memsense vendor-style CSV export (atomically).
+
+    Parameters
+    ----------
+    path
+        Target file.
+    t_s
+        (N,) s relative to ``start_utc`` (6 decimals written).
+    acc_g
+        (N, 3) specific force in g (5 decimals).
+    gyro_dps
+        (N, 3) angular rate, deg/s (4 decimals).
+    temperature_c
+        (N,) °C (1 decimal).
+    serial, rate_hz, start_utc
+        Header values.
+    """
+    preamble = ["MSCIP Data Export", "Device,MS-IMU3025", f"Serial,{serial}",
+                f"Sample Rate (Hz),{rate_hz:g}", f"Start (UTC),{start_utc}"]
+    cols = [fixed_point(t_s, 6)]
+    cols += [fixed_point(gyro_dps[:, i], 4) for i in range(3)]
+    cols += [fixed_point(acc_g[:, i], 5) for i in range(3)]
+    cols += [fixed_point(temperature_c, 1)]
+    write_bytes_atomic(path, _assemble(preamble, ",".join(MSCIP_COLUMNS), _csv_body(cols), None))
+
+
+# --------------------------------------------------------------------------- generic csv
+
+_TIME_SCALE = {"s": 1.0, "ms": 1e-3, "us": 1e-6}
+
+
+def _acc_scale(mapping: CsvMapping) -> float:
+    if mapping.acc_unit == "m/s2":
+        return 1.0
+    if mapping.acc_unit == "g":
+        return G0
+    assert mapping.lsb_per_g is not None
+    return G0 / mapping.lsb_per_g
+
+
+def read_generic_csv(path: str | Path, mapping: CsvMapping, device: str | None = None) -> Recording:
+    """Read a generic ``csv`` device file through its column/unit mapping.
+
+    Parameters
+    ----------
+    path
+        The file.
+    mapping
+        Columns, units, rows to skip before the header and the delimiter.
+    device
+        Device id to attach.
+
+    Returns
+    -------
+    Recording
+        ``t`` in s (as logged, converted from ``time_unit``), ``acc`` in m/s².
+    """
+    path = Path(path)
+    data = _read_bytes(path)
+    offset = 0
+    for _ in range(mapping.skip_rows):
+        if offset >= len(data):
+            raise RawFormatError(path, f"{mapping.skip_rows} rows before the header",
+                                 "end of file")
+        offset = _next_line(data, offset)[1]
+    col_line = mapping.skip_rows + 1
+    c = mapping.columns
+    wanted = {c["t"]: "float", c["ax"]: "float", c["ay"]: "float", c["az"]: "float"}
+    if len(wanted) != 4:
+        raise RawFormatError(path, "four distinct mapped columns", repr(c))
+    body = _read_body(path, data, offset, col_line, mapping.delimiter, wanted)
+    t, _ = _clean_times(body, body.values[c["t"]] * _TIME_SCALE[mapping.time_unit], MAX_STEP_S)
+    if t.shape[0] == 0:
+        raise RawFormatError(path, "at least one valid data line", "none", col_line)
+    v = body.values
+    acc = np.stack([v[c["ax"]], v[c["ay"]], v[c["az"]]], axis=1) * _acc_scale(mapping)
+    gaps = find_gaps(t, body.lines, None)
+    diag = ReadDiagnostics(path, col_line, body.lines_read, int(t.shape[0]), tuple(body.skipped),
+                           gaps)
+    return Recording(path, "csv", t, acc, np.zeros(t.shape[0], dtype=bool), body.lines, None, None,
+                     {"device": device} if device else {}, diag)
+
+
+def write_generic_csv(
+    path: str | Path,
+    t_s: np.ndarray,
+    acc_mps2: np.ndarray,
+    mapping: CsvMapping,
+    *,
+    preamble: Sequence[str] = (),
+    decimals: int = 6,
+) -> None:
+    """Write a generic csv file that :func:`read_generic_csv` reads with ``mapping``.
+
+    Parameters
+    ----------
+    path
+        Target file.
+    t_s
+        (N,) s; written in ``mapping.time_unit``.
+    acc_mps2
+        (N, 3) m/s²; written in ``mapping.acc_unit`` (counts rounded to integers).
+    mapping
+        Column names, units and delimiter; ``skip_rows`` must equal ``len(preamble)``.
+    preamble
+        Free lines written before the header.
+    decimals
+        Decimals for non-count values.
+    """
+    if len(preamble) != mapping.skip_rows:
+        raise ValueError(f"preamble has {len(preamble)} lines, mapping skips {mapping.skip_rows}")
+    t = np.asarray(t_s, dtype=np.float64) / _TIME_SCALE[mapping.time_unit]
+    acc = np.asarray(acc_mps2, dtype=np.float64) / _acc_scale(mapping)
+    cols = [fixed_point(t, decimals)]
+    if mapping.acc_unit == "counts":
+        cols += [pa.array(np.rint(acc[:, i]).astype(np.int64)) for i in range(3)]
+    else:
+        cols += [fixed_point(acc[:, i], decimals) for i in range(3)]
+    c = mapping.columns
+    d = mapping.delimiter
+    header = d.join([c["t"], c["ax"], c["ay"], c["az"]])
+    write_bytes_atomic(path, _assemble(preamble, header, _csv_body(cols, d), None))
+
+
+# --------------------------------------------------------------------------- dispatch
+
+
+def read_device_file(path: str | Path, device: DeviceSpec) -> Recording:
+    """Read one device file with the reader its manifest entry names.
+
+    Parameters
+    ----------
+    path
+        The file.
+    device
+        The device's manifest entry (format and, for ``csv``, the mapping).
+
+    Returns
+    -------
+    Recording
+    """
+    if device.format == "ofbe-logger":
+        return read_ofbe_logger(path, device.id)
+    if device.format == "mscip-csv":
+        return read_mscip_csv(path, device.id)
+    if device.format == "csv":
+        assert device.csv is not None
+        return read_generic_csv(path, device.csv, device.id)
+    raise RawFormatError(path, "format ofbe-logger, mscip-csv or csv", repr(device.format))
+

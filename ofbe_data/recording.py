@@ -1,0 +1,168 @@
+"""Typed recordings: what every raw-format reader returns."""
+
+from __future__ import annotations
+
+from collections import Counter
+from dataclasses import dataclass, field
+from datetime import datetime
+from pathlib import Path
+
+import numpy as np
+
+#: Kinds of skipped lines, as counted in :attr:`ReadDiagnostics.skipped_by_kind`.
+SKIP_FIELD_COUNT = "field-count"
+SKIP_NON_NUMERIC = "non-numeric"
+SKIP_EMPTY = "empty"
+SKIP_OUT_OF_RANGE = "out-of-range"
+SKIP_NON_INCREASING_TIME = "non-increasing-time"
+
+
+@dataclass(frozen=True)
+class SkippedLine:
+    """A data line that was counted and skipped, never guessed.
+
+    Attributes
+    ----------
+    line
+        1-based line number in the file.
+    kind
+        One of the ``SKIP_*`` constants.
+    detail
+        Human-readable reason, e.g. ``"expected 4 fields, found 3"``.
+    """
+
+    line: int
+    kind: str
+    detail: str
+
+
+@dataclass(frozen=True)
+class Gap:
+    """Samples missing between two consecutive kept samples.
+
+    Attributes
+    ----------
+    line
+        File line of the sample after the gap.
+    t_s
+        Time of the sample after the gap, s (device clock).
+    duration_s
+        Time between the two samples around the gap, s.
+    missing_samples
+        Estimated number of samples lost (round(duration / period) − 1).
+    """
+
+    line: int
+    t_s: float
+    duration_s: float
+    missing_samples: int
+
+
+@dataclass(frozen=True)
+class ReadDiagnostics:
+    """What a reader saw in one file.
+
+    Attributes
+    ----------
+    path
+        The file.
+    preamble_lines
+        Lines before the first data line (boot noise, header comments, column names).
+    lines_read
+        Data lines after the column header (kept plus skipped).
+    samples
+        Samples kept.
+    skipped
+        Lines skipped, with reasons.
+    gaps
+        Gaps in the time stamps (dropped samples).
+    wraps
+        Number of counter wrap-arounds undone (``micros()`` at 2³² µs).
+    saturated_samples
+        Kept samples with at least one axis at the converter's limit.
+    boot_lines
+        Lines before the format's header (boot noise), part of ``preamble_lines``.
+    """
+
+    path: Path
+    preamble_lines: int
+    lines_read: int
+    samples: int
+    skipped: tuple[SkippedLine, ...] = ()
+    gaps: tuple[Gap, ...] = ()
+    wraps: int = 0
+    saturated_samples: int = 0
+    boot_lines: int = 0
+
+    @property
+    def skipped_by_kind(self) -> dict[str, int]:
+        """Count of skipped lines per kind."""
+        return dict(Counter(s.kind for s in self.skipped))
+
+    @property
+    def missing_samples(self) -> int:
+        """Total samples estimated lost in gaps."""
+        return sum(g.missing_samples for g in self.gaps)
+
+    def summary(self) -> str:
+        """One line for logs: counts of everything noteworthy."""
+        kinds = ", ".join(f"{k} {n}" for k, n in sorted(self.skipped_by_kind.items())) or "none"
+        return (f"{self.path}: {self.samples} samples from {self.lines_read} data lines; "
+                f"skipped: {kinds}; gaps {len(self.gaps)} ({self.missing_samples} samples); "
+                f"wraps {self.wraps}; saturated {self.saturated_samples}")
+
+
+@dataclass(frozen=True)
+class Recording:
+    """One device's file of one recording, in SI units.
+
+    Attributes
+    ----------
+    path
+        Source file.
+    format
+        Raw format it was read as.
+    t
+        (N,) float64, s, on the device's own clock (monotonic; counter wraps undone).
+    acc
+        (N, 3) float64, m/s², specific force in the sensor frame.
+    saturated
+        (N,) bool, True where any axis sat at the converter's limit.
+    line
+        (N,) int64, the file line of each sample (for error messages).
+    start_utc
+        Header UTC stamp of the start, when the format has one.
+    nominal_rate_hz
+        Sample rate stated by the header, when known.
+    header
+        Header key/values as written.
+    extra
+        Further per-sample columns by name (e.g. gyro, temperature), (N,) float64.
+    diagnostics
+        What the reader saw.
+    """
+
+    path: Path
+    format: str
+    t: np.ndarray
+    acc: np.ndarray
+    saturated: np.ndarray
+    line: np.ndarray
+    start_utc: datetime | None
+    nominal_rate_hz: float | None
+    header: dict[str, str]
+    diagnostics: ReadDiagnostics
+    extra: dict[str, np.ndarray] = field(default_factory=dict)
+
+    @property
+    def n(self) -> int:
+        """Number of samples."""
+        return int(self.t.shape[0])
+
+    @property
+    def fs_hz(self) -> float:
+        """Measured sample rate, Hz: kept plus missing samples over the time span."""
+        if self.n < 2:
+            return float("nan")
+        span = float(self.t[-1] - self.t[0])
+        return (self.n - 1 + self.diagnostics.missing_samples) / span if span > 0 else float("nan")

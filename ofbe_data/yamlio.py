@@ -1,0 +1,128 @@
+"""Safe YAML reading with duplicate-key detection and line numbers for error messages.
+
+PyYAML's ``safe_load`` silently keeps the last of two equal keys, which would hide a
+duplicated device id in a manifest. We therefore *compose* the document first (composing
+builds plain nodes with positions and constructs no Python objects), reject duplicate
+keys with their line, and only then ``yaml.safe_load`` the same text.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+FieldPath = Sequence[str | int]
+
+
+class YamlProblem(Exception):
+    """Internal: a YAML problem with the field path and line, re-raised by callers as
+    their own error type."""
+
+    def __init__(self, field: str, expected: str, found: str, line: int | None) -> None:
+        super().__init__(f"{field}: expected {expected}, found {found}")
+        self.field = field
+        self.expected = expected
+        self.found = found
+        self.line = line
+
+
+def format_field(path: FieldPath) -> str:
+    """Render a field path: ``("recordings", 2, "id")`` → ``recordings[2].id``."""
+    out = ""
+    for part in path:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        else:
+            out += ("." if out else "") + str(part)
+    return out or "<document>"
+
+
+def _check_duplicates(node: yaml.Node, path: list[str | int]) -> None:
+    if isinstance(node, yaml.MappingNode):
+        seen: dict[str, int] = {}
+        for key_node, value_node in node.value:
+            key = str(key_node.value)
+            line = key_node.start_mark.line + 1
+            if key in seen:
+                raise YamlProblem(
+                    format_field([*path, key]),
+                    "unique keys",
+                    f"a duplicate of the key on line {seen[key]}",
+                    line,
+                )
+            seen[key] = line
+            _check_duplicates(value_node, [*path, key])
+    elif isinstance(node, yaml.SequenceNode):
+        for i, item in enumerate(node.value):
+            _check_duplicates(item, [*path, i])
+
+
+class YamlDocument:
+    """A parsed YAML document that remembers where each field sits.
+
+    Parameters
+    ----------
+    text
+        The YAML text.
+
+    Attributes
+    ----------
+    data
+        The document as plain Python objects (``yaml.safe_load``).
+    """
+
+    def __init__(self, text: str) -> None:
+        try:
+            self._root = yaml.compose(text, Loader=yaml.SafeLoader)
+            if self._root is not None:
+                _check_duplicates(self._root, [])
+            self.data: Any = yaml.safe_load(text)
+        except yaml.MarkedYAMLError as exc:
+            mark = exc.problem_mark or exc.context_mark
+            line = mark.line + 1 if mark is not None else None
+            problem = exc.problem or exc.context or "a syntax error"
+            raise YamlProblem("<document>", "valid YAML", problem, line) from None
+
+    def line_of(self, path: FieldPath) -> int | None:
+        """1-based line of the field at ``path`` (or of its deepest existing parent)."""
+        node = self._root
+        line = node.start_mark.line + 1 if node is not None else None
+        for part in path:
+            if isinstance(node, yaml.MappingNode):
+                for key_node, value_node in node.value:
+                    if str(key_node.value) == str(part):
+                        line = key_node.start_mark.line + 1
+                        node = value_node
+                        break
+                else:
+                    return line
+            elif isinstance(node, yaml.SequenceNode) and isinstance(part, int):
+                if not 0 <= part < len(node.value):
+                    return line
+                node = node.value[part]
+                line = node.start_mark.line + 1
+            else:
+                return line
+        return line
+
+
+def read_yaml(path: str | Path) -> YamlDocument:
+    """Read a YAML file as UTF-8 into a :class:`YamlDocument`.
+
+    Raises
+    ------
+    YamlProblem
+        On a syntax error or a duplicate key, with the line.
+    OSError
+        When the file cannot be read.
+    """
+    raw = Path(path).read_bytes()
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = raw[: exc.start].count(b"\n") + 1
+        raise YamlProblem("<document>", "UTF-8 text", f"byte 0x{raw[exc.start]:02x}", line) from None
+    return YamlDocument(text)
