@@ -1,0 +1,166 @@
+"""Campaign simulator: writes sessions in the raw formats, with truth files.
+
+The simulator stands in for the paper's unpublished dataset. Its error model and
+defaults are documented in docs/sensor-model.md; :func:`simulate_campaign` is what
+``ofbe-simulate`` runs.
+"""
+
+from __future__ import annotations
+
+import os
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import yaml
+from tqdm import tqdm
+
+from ofbe_data.atomic import atomic_directory, write_bytes_atomic
+from ofbe_data.errors import OutputExistsError
+from ofbe_data.manifest import _ID_RE
+from ofbe_data.simulator.campaign import (
+    CampaignDraw,
+    SessionData,
+    draw_campaign,
+    simulate_session,
+    truth_config,
+    write_session,
+)
+from ofbe_data.simulator.config import SimConfig, builtin_profiles, load_config
+
+__all__ = ["CampaignResult", "builtin_profiles", "generate_sessions", "load_config",
+           "simulate_campaign"]
+
+
+@dataclass(frozen=True)
+class CampaignResult:
+    """What :func:`simulate_campaign` wrote."""
+
+    folder: Path
+    campaign: str
+    seed: int
+    sessions: int
+    files: int
+    bytes: int
+
+
+def _seeds(seed: int, cfg: SimConfig) -> tuple[np.random.SeedSequence, list[np.random.SeedSequence],
+                                                 list[np.random.SeedSequence]]:
+    root = np.random.SeedSequence(seed)
+    children = root.spawn(2 * cfg.sessions + 1)
+    return children[0], children[1:cfg.sessions + 1], children[cfg.sessions + 1:]
+
+
+def generate_sessions(cfg: SimConfig, seed: int | None = None, campaign: str = "sim",
+                      folder: Path = Path("."), indices: list[int] | None = None,
+                      ) -> tuple[CampaignDraw, list[SessionData]]:
+    """Simulate sessions in memory (no files): for statistics and tests.
+
+    Parameters
+    ----------
+    cfg
+        Configuration.
+    seed
+        Seed (defaults to ``cfg.seed``).
+    campaign
+        Campaign id.
+    folder
+        Campaign folder the manifests refer to.
+    indices
+        Which sessions (0-based); all by default.
+
+    Returns
+    -------
+    draw, sessions
+        The campaign-level draws and the simulated sessions.
+    """
+    seed = cfg.seed if seed is None else seed
+    camp_seq, sess_seqs, _ = _seeds(seed, cfg)
+    draw = draw_campaign(cfg, camp_seq)
+    idx = range(cfg.sessions) if indices is None else indices
+    sessions = [simulate_session(cfg, draw, i, campaign, sess_seqs[i],
+                                 folder / f"{cfg.session_prefix}-pc{i + 1:03d}") for i in idx]
+    return draw, sessions
+
+
+def _write_one(args: tuple[SimConfig, CampaignDraw, int, str, np.random.SeedSequence,
+                           np.random.SeedSequence, Path]) -> tuple[int, int]:
+    cfg, draw, index, campaign, sess_seq, garble_seq, tmp = args
+    name = f"{cfg.session_prefix}-pc{index + 1:03d}"
+    data = simulate_session(cfg, draw, index, campaign, sess_seq, tmp / name)
+    write_session(data, tmp / name, tmp / "_truth" / f"{name}.json", cfg.dut_model.garble_rate,
+                  garble_seq)
+    files = sum(len(r.files) for r in data.manifest.recordings) + 2
+    size = sum(p.stat().st_size for p in (tmp / name).rglob("*") if p.is_file())
+    return files, size
+
+
+def simulate_campaign(config: str | Path | SimConfig, out: str | Path, *, seed: int | None = None,
+                      jobs: int = 1, force: bool = False, progress: bool = True,
+                      ) -> CampaignResult:
+    """Write a simulated campaign: one folder per session plus ``_truth/``.
+
+    The campaign is built in a temporary folder beside ``out`` and renamed into place
+    when complete, so an interrupted run leaves nothing partial.
+
+    Parameters
+    ----------
+    config
+        Profile name, YAML file or a loaded configuration.
+    out
+        Campaign folder to create (``raw/<campaign>``).
+    seed
+        Seed; defaults to the configuration's.
+    jobs
+        Worker processes.
+    force
+        Replace an existing ``out``.
+    progress
+        Show a progress bar on stderr.
+
+    Returns
+    -------
+    CampaignResult
+
+    Raises
+    ------
+    ConfigError
+        Invalid configuration.
+    OutputExistsError
+        ``out`` exists and ``force`` is False.
+    """
+    cfg = config if isinstance(config, SimConfig) else load_config(config)
+    out = Path(out)
+    campaign = cfg.campaign or out.name
+    if not _ID_RE.match(campaign):
+        from ofbe_data.errors import ConfigError
+
+        raise ConfigError(str(config), "campaign", "an id of [A-Za-z0-9._-]+ (or an --out folder "
+                          "named like one)", repr(campaign))
+    if out.exists() and not force:
+        raise OutputExistsError(out)
+    seed = cfg.seed if seed is None else seed
+    camp_seq, sess_seqs, garble_seqs = _seeds(seed, cfg)
+    draw = draw_campaign(cfg, camp_seq)
+    files = size = 0
+    with atomic_directory(out, replace=force) as tmp:
+        (tmp / "_truth").mkdir()
+        tasks = [(cfg, draw, i, campaign, sess_seqs[i], garble_seqs[i], tmp)
+                 for i in range(cfg.sessions)]
+        bar = tqdm(total=len(tasks), desc=f"simulate {campaign}", unit="session",
+                   disable=not progress)
+        if jobs > 1:
+            with ProcessPoolExecutor(max_workers=min(jobs, os.cpu_count() or 1)) as pool:
+                for f, s in pool.map(_write_one, tasks):
+                    files, size = files + f, size + s
+                    bar.update()
+        else:
+            for task in tasks:
+                f, s = _write_one(task)
+                files, size = files + f, size + s
+                bar.update()
+        bar.close()
+        text = yaml.safe_dump(truth_config(cfg, seed, campaign), sort_keys=False)
+        write_bytes_atomic(tmp / "_truth" / "simulation.yaml", text.encode())
+    return CampaignResult(out, campaign, seed, cfg.sessions, files, size)

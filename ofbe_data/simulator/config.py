@@ -1,0 +1,371 @@
+"""Simulator configuration: typed records, built-in profiles and YAML loading.
+
+A configuration is a YAML mapping. It may name a base ``profile`` (built-in or a file);
+its own keys are then merged over the base, key by key. Unknown keys and values of the
+wrong type are errors (:class:`~ofbe_data.errors.ConfigError`) naming the key.
+docs/sensor-model.md gives the source of every default.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import types
+import typing
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from ofbe_data.errors import ConfigError
+from ofbe_data.yamlio import YamlDocument, YamlProblem, read_yaml
+
+Range = tuple[float, float]
+Vec3 = tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class DutConfig:
+    """One device under test (SparkFun Thing Plus ESP32 + ADXL345).
+
+    Attributes
+    ----------
+    id
+        Device id.
+    reference_to_sensor
+        Nominal rotation from the reference (plate) frame to this sensor's frame.
+    up_axis
+        For level (gravity-aligned) placement: the sensor axis pointing up, e.g. ``+z``.
+    """
+
+    id: str
+    reference_to_sensor: tuple[Vec3, Vec3, Vec3] = ((1, 0, 0), (0, 1, 0), (0, 0, 1))
+    up_axis: str = "+z"
+
+
+@dataclass(frozen=True)
+class ReferenceConfig:
+    """The reference IMU (Memsense MS-IMU3025)."""
+
+    id: str = "memsense"
+    serial: str = "3025-00417"
+
+
+@dataclass(frozen=True)
+class DutModel:
+    """Error model and logger settings of the ADXL345 devices (all per axis x, y, z)."""
+
+    lsb_per_g: float = 256.0
+    range_g: int = 16
+    scale_sigma: float = 0.01
+    cross_axis_sigma_deg: float = 0.3
+    mount_sigma_deg: float = 1.5
+    offset_sigma_mg: Vec3 = (12.0, 12.0, 20.0)
+    turn_on_sigma_mg: Vec3 = (5.0, 5.0, 5.0)
+    drift_sigma_mg: float = 0.3
+    drift_tau_s: float = 100.0
+    warmup_mg: Vec3 = (0.0, 0.0, 0.0)
+    warmup_tau_s: float = 120.0
+    noise_mg: Vec3 = (3.5, 3.5, 5.2)
+    rate_hz: float = 150.0
+    jitter_s: float = 0.0002
+    drop_prob: float = 2e-4
+    clock_ppm: float = 50.0
+    uptime_s: Range = (3.0, 4294.0)
+    host_latency_s: float = 0.1
+    boot_lines: tuple[int, int] = (1, 4)
+    garble_rate: float = 2e-5
+    firmware: str = "1.4.2"
+
+
+@dataclass(frozen=True)
+class ReferenceModel:
+    """Error model of the reference IMU."""
+
+    rate_hz: float = 200.0
+    bias_sigma_mg: float = 0.395
+    noise_mg: float = 0.5
+    scale_sigma: float = 0.0002
+    cross_axis_sigma_deg: float = 0.01
+    gyro_noise_dps: float = 0.01
+    temperature_c: float = 31.2
+
+
+@dataclass(frozen=True)
+class TiltConfig:
+    """Orientations of the plate (or of level devices).
+
+    ``mode``: ``level`` (gravity-aligned: each device rests with ``up_axis`` up, tilted
+    only by ``level_sigma_deg``), ``rotated`` (tripod settings drawn over the pitch and
+    roll ranges, a third roll-only, a third pitch-only, a third combined), or
+    ``multi-position`` (per session the six faces, then random orientations).
+    """
+
+    mode: str = "rotated"
+    pitch_deg: Range = (-80.0, 60.0)
+    roll_deg: Range = (-180.0, 180.0)
+    setting_step_deg: float = 5.0
+    setting_error_deg: float = 0.5
+    level_sigma_deg: float = 0.2
+    face_error_deg: float = 2.0
+
+
+@dataclass(frozen=True)
+class TapConfig:
+    """Taps on the plate at the start and end of a recording."""
+
+    enabled: bool = True
+    lead_s: Range = (2.0, 4.0)
+    tail_s: Range = (2.0, 4.0)
+    amplitude_g: Range = (0.5, 3.0)
+    frequency_hz: Range = (25.0, 40.0)
+    decay_s: float = 0.05
+    margin_s: float = 1.0
+    start_stagger_s: float = 1.0
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """A whole simulated campaign.
+
+    Attributes
+    ----------
+    kind
+        ``gravity-aligned``, ``rotated`` or ``multi-position``.
+    campaign
+        Campaign id; None → the output folder's name.
+    session_prefix
+        Session ids are ``<prefix>-pc<NNN>``.
+    sessions
+        Number of sessions (power cycles).
+    recordings_per_session
+        Recordings per power cycle.
+    stationary_s
+        Duration of the stationary part of each recording, s (uniform range).
+    seed
+        Default seed (``--seed`` overrides).
+    start_utc
+        UTC of the first power-on.
+    site
+        ``latitude_deg``/``height_m`` or ``gravity_mps2``.
+    duts, reference
+        Devices; ``reference`` None for campaigns without one.
+    """
+
+    kind: str = "rotated"
+    campaign: str | None = None
+    session_prefix: str = "sim"
+    sessions: int = 29
+    recordings_per_session: int = 3
+    stationary_s: Range = (80.0, 93.0)
+    seed: int = 0
+    start_utc: str = "2025-03-14T09:00:00Z"
+    site: dict[str, float] = field(default_factory=lambda: {"latitude_deg": 32.794,
+                                                             "height_m": 35.0})
+    duts: tuple[DutConfig, ...] = (DutConfig("sparkfun-1"),)
+    reference: ReferenceConfig | None = None
+    dut_model: DutModel = DutModel()
+    reference_model: ReferenceModel = ReferenceModel()
+    tilts: TiltConfig = TiltConfig()
+    taps: TapConfig = TapConfig()
+
+
+# ----------------------------------------------------------------------------- loading
+
+_PROFILE_PACKAGE = "ofbe_data.profiles"
+
+
+def builtin_profiles() -> list[str]:
+    """Names of the built-in profiles."""
+    files = resources.files(_PROFILE_PACKAGE).iterdir()
+    return sorted(p.name[:-5] for p in files if p.name.endswith(".yaml"))
+
+
+def _deep_merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
+    out = dict(base)
+    for key, value in over.items():
+        if isinstance(value, dict) and isinstance(out.get(key), dict):
+            out[key] = _deep_merge(out[key], value)
+        else:
+            out[key] = value
+    return out
+
+
+def _load_raw(name_or_path: str | Path, chain: tuple[str, ...] = ()) -> dict[str, Any]:
+    """Resolve a profile name or YAML file into one plain mapping (bases merged)."""
+    text_source = str(name_or_path)
+    if text_source in chain:
+        raise ConfigError(text_source, "profile", "no cycle of base profiles",
+                          " -> ".join((*chain, text_source)))
+    path = Path(name_or_path)
+    try:
+        if path.suffix in (".yaml", ".yml") or path.exists():
+            if not path.is_file():
+                raise ConfigError(path, "<file>", "a YAML config file or a built-in profile ("
+                                  + ", ".join(builtin_profiles()) + ")", "no such file")
+            doc = read_yaml(path)
+        else:
+            res = resources.files(_PROFILE_PACKAGE).joinpath(f"{text_source}.yaml")
+            if not res.is_file():
+                raise ConfigError(text_source, "profile", "a built-in profile ("
+                                  + ", ".join(builtin_profiles()) + ") or a YAML file",
+                                  "no such profile")
+            doc = YamlDocument(res.read_text(encoding="utf-8"))
+    except YamlProblem as exc:
+        where = f"{text_source}:{exc.line}" if exc.line else text_source
+        raise ConfigError(where, exc.field, exc.expected, exc.found) from None
+    data = doc.data if doc.data is not None else {}
+    if not isinstance(data, dict):
+        raise ConfigError(text_source, "<document>", "a mapping", type(data).__name__)
+    base = data.pop("profile", None)
+    if base is None:
+        return data
+    if not isinstance(base, str):
+        raise ConfigError(text_source, "profile", "a profile name or file", repr(base))
+    if not Path(base).is_absolute() and Path(base).suffix in (".yaml", ".yml") and path.is_file():
+        base = str(path.parent / base)
+    return _deep_merge(_load_raw(base, (*chain, text_source)), data)
+
+
+def _convert(value: Any, tp: Any, source: str, key: str) -> Any:
+    """Convert plain YAML data to the annotated type, or raise ConfigError."""
+    origin = typing.get_origin(tp)
+    args = typing.get_args(tp)
+    if origin in (typing.Union, types.UnionType):
+        if value is None and type(None) in args:
+            return None
+        inner = [a for a in args if a is not type(None)]
+        return _convert(value, inner[0], source, key)
+    if dataclasses.is_dataclass(tp):
+        return _to_dataclass(value, tp, source, key)
+    if tp is bool:
+        if not isinstance(value, bool):
+            raise ConfigError(source, key, "true or false", repr(value))
+        return value
+    if tp is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ConfigError(source, key, "an integer", repr(value))
+        return value
+    if tp is float:
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise ConfigError(source, key, "a number", repr(value))
+        return float(value)
+    if tp is str:
+        if not isinstance(value, str):
+            raise ConfigError(source, key, "a string", repr(value))
+        return value
+    if origin is tuple:
+        if not isinstance(value, list | tuple):
+            raise ConfigError(source, key, "a list", repr(value))
+        if len(args) == 2 and args[1] is Ellipsis:
+            return tuple(_convert(v, args[0], source, f"{key}[{i}]") for i, v in enumerate(value))
+        if len(value) != len(args):
+            raise ConfigError(source, key, f"a list of {len(args)} values", repr(value))
+        return tuple(_convert(v, a, source, f"{key}[{i}]")
+                     for i, (v, a) in enumerate(zip(value, args, strict=True)))
+    if origin is dict:
+        if not isinstance(value, dict):
+            raise ConfigError(source, key, "a mapping", repr(value))
+        return {str(k): _convert(v, args[1], source, f"{key}.{k}") for k, v in value.items()}
+    raise ConfigError(source, key, f"a value of type {tp}", repr(value))  # pragma: no cover
+
+
+def _to_dataclass(data: Any, cls: Any, source: str, prefix: str) -> Any:
+    if not isinstance(data, dict):
+        raise ConfigError(source, prefix or "<document>", "a mapping", repr(data))
+    hints = typing.get_type_hints(cls)
+    names = {f.name for f in dataclasses.fields(cls)}
+    unknown = sorted(set(data) - names)
+    if unknown:
+        key = f"{prefix}.{unknown[0]}" if prefix else unknown[0]
+        raise ConfigError(source, key, "one of " + ", ".join(sorted(names)), "an unknown key")
+    kwargs = {}
+    for name, value in data.items():
+        key = f"{prefix}.{name}" if prefix else name
+        kwargs[name] = _convert(value, hints[name], source, key)
+    try:
+        return cls(**kwargs)
+    except TypeError as exc:
+        raise ConfigError(source, prefix or "<document>", "all required keys", str(exc)) from None
+
+
+def _check(cfg: SimConfig, source: str) -> SimConfig:
+    """Semantic checks that types alone do not catch."""
+    kinds = ("gravity-aligned", "rotated", "multi-position")
+    if cfg.kind not in kinds:
+        raise ConfigError(source, "kind", "one of " + ", ".join(kinds), repr(cfg.kind))
+    if cfg.kind == "rotated" and cfg.reference is None:
+        raise ConfigError(source, "reference", "a reference device for kind rotated", "none")
+    if cfg.kind != "rotated" and cfg.reference is not None:
+        raise ConfigError(source, "reference", f"no reference for kind {cfg.kind}", "one")
+    if not cfg.duts:
+        raise ConfigError(source, "duts", "at least one device", "none")
+    if len({d.id for d in cfg.duts}) != len(cfg.duts):
+        raise ConfigError(source, "duts", "unique device ids", repr([d.id for d in cfg.duts]))
+    for name in ("sessions", "recordings_per_session"):
+        if getattr(cfg, name) < 1:
+            raise ConfigError(source, name, "an integer >= 1", repr(getattr(cfg, name)))
+    lo, hi = cfg.stationary_s
+    if not 0 < lo <= hi:
+        raise ConfigError(source, "stationary_s", "0 < low <= high", repr(cfg.stationary_s))
+    modes = {"gravity-aligned": "level", "rotated": "rotated", "multi-position": "multi-position"}
+    if cfg.tilts.mode != modes[cfg.kind]:
+        raise ConfigError(source, "tilts.mode", f"{modes[cfg.kind]} for kind {cfg.kind}",
+                          repr(cfg.tilts.mode))
+    for d in cfg.duts:
+        if d.up_axis not in ("+x", "-x", "+y", "-y", "+z", "-z"):
+            raise ConfigError(source, f"duts.{d.id}.up_axis", "one of +x -x +y -y +z -z",
+                              repr(d.up_axis))
+    m = cfg.dut_model
+    if not 0 <= m.drop_prob < 0.5 or not 0 <= m.garble_rate < 0.5:
+        raise ConfigError(source, "dut_model.drop_prob/garble_rate", "probabilities in [0, 0.5)",
+                          f"{m.drop_prob}, {m.garble_rate}")
+    if m.uptime_s[0] < 0 or m.uptime_s[1] < m.uptime_s[0]:
+        raise ConfigError(source, "dut_model.uptime_s", "0 <= low <= high", repr(m.uptime_s))
+    if m.jitter_s * m.rate_hz >= 0.25:
+        raise ConfigError(source, "dut_model.jitter_s", "less than a quarter sample period",
+                          repr(m.jitter_s))
+    return cfg
+
+
+def load_config(name_or_path: str | Path, overrides: dict[str, Any] | None = None) -> SimConfig:
+    """Load a simulator configuration.
+
+    Parameters
+    ----------
+    name_or_path
+        A built-in profile name (see :func:`builtin_profiles`) or a YAML file, which may
+        name a base ``profile``.
+    overrides
+        Extra keys merged last (e.g. from params.yaml).
+
+    Returns
+    -------
+    SimConfig
+
+    Raises
+    ------
+    ConfigError
+        Unknown profile, unknown key, wrong type or inconsistent values.
+    """
+    data = _load_raw(name_or_path)
+    if overrides:
+        data = _deep_merge(data, overrides)
+    source = str(name_or_path)
+    duts = data.get("duts")
+    if isinstance(duts, dict):  # allow {id: {...}} as well as a list
+        data["duts"] = [{"id": k, **(v or {})} for k, v in duts.items()]
+    cfg = _to_dataclass(data, SimConfig, source, "")
+    return _check(cfg, source)
+
+
+def config_to_dict(cfg: SimConfig) -> dict[str, Any]:
+    """Plain (JSON/YAML-ready) form of a configuration."""
+
+    def plain(v: Any) -> Any:
+        if isinstance(v, tuple | list):
+            return [plain(x) for x in v]
+        if isinstance(v, dict):
+            return {k: plain(x) for k, x in v.items()}
+        return v
+
+    return plain(dataclasses.asdict(cfg))
