@@ -93,6 +93,19 @@ def _next_line(data: bytes, offset: int) -> tuple[bytes, int]:
     return data[offset:end], nxt
 
 
+_MASK_NON_ASCII = bytes(range(128)) + b"?" * 128
+
+
+def _original_field(body: bytes, line_index: int, column: int, delimiter: str) -> bytes:
+    """Field ``column`` of line ``line_index`` (0-based, header = 0) of ``body``, as bytes."""
+    start = 0
+    for _ in range(line_index):
+        start = body.index(b"\n", start) + 1
+    line = _next_line(body, start)[0]
+    fields = line.split(delimiter.encode())
+    return fields[column] if column < len(fields) else b""
+
+
 def _decode(raw: bytes) -> str:
     return raw.decode("utf-8", errors="backslashreplace")
 
@@ -163,7 +176,10 @@ def _read_body(
 
     try:
         table = pacsv.read_csv(
-            pa.BufferReader(body),
+            # pyarrow decodes an invalid row's text as UTF-8 before calling the handler, so
+            # bytes >= 0x80 (never valid in a number) are masked for parsing; messages
+            # quote the original bytes
+            pa.BufferReader(body.translate(_MASK_NON_ASCII)),
             read_options=pacsv.ReadOptions(use_threads=False, column_names=names, skip_rows=1),
             parse_options=pacsv.ParseOptions(delimiter=delimiter, quote_char=False,
                                              ignore_empty_lines=False,
@@ -188,7 +204,11 @@ def _read_body(
         good_np = good.to_numpy(zero_copy_only=False)
         empty &= (pc.binary_length(col).to_numpy(zero_copy_only=False) == 0)
         for i in np.flatnonzero(~good_np & ok):
-            first_bad[int(i)] = f"field {name!r} is not a number: {_show(col[int(i)].as_py())}"
+            raw = col[int(i)].as_py()
+            if b"?" in raw:  # masked bytes: quote the original field
+                raw = _original_field(body, int(row_lines[i]) - header_line, names.index(name),
+                                      delimiter)
+            first_bad[int(i)] = f"field {name!r} is not a number: {_show(raw)}"
         ok &= good_np
     skipped = list(invalid)
     for i, detail in first_bad.items():

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from ofbe_data.atomic import write_bytes_atomic
+from ofbe_data.errors import ConfigError
 from ofbe_data.gravity import G0
 from ofbe_data.manifest import (
     MANIFEST_FORMAT,
@@ -129,24 +130,43 @@ def _site(cfg: SimConfig) -> Site:
 
 
 def _rotated_settings(cfg: SimConfig, rng: np.random.Generator) -> list[list[Setting]]:
-    """Distinct tripod settings: a third roll-only, a third pitch-only, a third combined."""
+    """Distinct tripod settings: a third roll-only, a third pitch-only, a third combined.
+
+    Angles are stratified over their ranges (one uniform draw per equal-width stratum),
+    so every campaign covers the whole pitch and roll ranges, then rounded to the
+    tripod's ``setting_step_deg``; zero or repeated settings move by one step.
+    """
     t = cfg.tilts
     n = cfg.sessions * cfg.recordings_per_session
     step = t.setting_step_deg
+    counts = [len(range(k, n, 3)) for k in range(3)]
 
-    def grid(lo: float, hi: float) -> float:
-        return float(np.clip(step * np.round(rng.uniform(lo, hi) / step), lo, hi))
+    def strata(lo: float, hi: float, m: int) -> np.ndarray:
+        return rng.permutation(lo + (hi - lo) * (np.arange(m) + rng.uniform(0.0, 1.0, m)) / m)
 
+    raw = [(r, 0.0) for r in strata(*t.roll_deg, counts[0])]
+    raw += [(0.0, p) for p in strata(*t.pitch_deg, counts[1])]
+    raw += list(zip(strata(*t.roll_deg, counts[2]), strata(*t.pitch_deg, counts[2]), strict=True))
     seen: set[tuple[float, float]] = set()
     chosen: list[tuple[float, float]] = []
-    attempts = 0
-    while len(chosen) < n:
-        kind = len(chosen) % 3
-        roll = grid(*t.roll_deg) if kind != 1 else 0.0
-        pitch = grid(*t.pitch_deg) if kind != 0 else 0.0
-        attempts += 1
-        if (roll, pitch) in seen and attempts < 100 * n:
-            continue
+    for roll0, pitch0 in raw:
+        roll_axis, pitch_axis = roll0 != 0.0, pitch0 != 0.0
+        for shift in range(1000):
+            sgn = 1 if shift % 2 else -1
+            roll = float(np.clip(step * (np.round(roll0 / step) + sgn * (shift // 2) * roll_axis),
+                                 *t.roll_deg))
+            pitch = float(np.clip(step * (np.round(pitch0 / step)
+                                          + sgn * (shift // 2) * (pitch_axis and not roll_axis)),
+                                  *t.pitch_deg))
+            roll = 180.0 if roll == -180.0 else roll + 0.0  # one name per orientation
+            pitch += 0.0
+            if (roll_axis and roll == 0.0) or (pitch_axis and pitch == 0.0):
+                continue
+            if (roll, pitch) not in seen:
+                break
+        else:
+            raise ConfigError("tilts", "setting_step_deg", f"a grid with {n} distinct settings",
+                              "too few within the pitch and roll ranges")
         seen.add((roll, pitch))
         chosen.append((roll, pitch))
     order = rng.permutation(n)

@@ -103,7 +103,7 @@ class TiltConfig:
     mode: str = "rotated"
     pitch_deg: Range = (-80.0, 60.0)
     roll_deg: Range = (-180.0, 180.0)
-    setting_step_deg: float = 5.0
+    setting_step_deg: float = 1.0
     setting_error_deg: float = 0.5
     level_sigma_deg: float = 0.2
     face_error_deg: float = 2.0
@@ -156,7 +156,7 @@ class SimConfig:
     session_prefix: str = "sim"
     sessions: int = 29
     recordings_per_session: int = 3
-    stationary_s: Range = (80.0, 93.0)
+    stationary_s: Range = (80.25, 93.0)
     seed: int = 0
     start_utc: str = "2025-03-14T09:00:00Z"
     site: dict[str, float] = field(default_factory=lambda: {"latitude_deg": 32.794,

@@ -125,7 +125,8 @@ def test_missing_logger_header_is_an_error_naming_the_file(write_text):
 
 def test_missing_header_key_and_wrong_columns(write_text):
     path = _logger_file(write_text, ["1,2,3,4"], HEADER.replace(" lsb_per_g=256", ""))
-    with pytest.raises(RawFormatError, match=r":3: expected header key lsb_per_g=<number>, found no such key"):
+    with pytest.raises(RawFormatError,
+                       match=r":3: expected header key lsb_per_g=<number>, found no such key"):
         read_ofbe_logger(path)
     path = _logger_file(write_text, ["1,2,3,4"], HEADER.replace("t_us,ax,ay,az", "t_us,ax,ay,azz"))
     with pytest.raises(RawFormatError) as info:

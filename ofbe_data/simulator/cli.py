@@ -1,4 +1,4 @@
-"""Command-line entry points (console scripts declared in pyproject.toml)."""
+"""``ofbe-simulate``: the simulator's command-line entry (console script in pyproject.toml)."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ def _fail(prog: str, message: str) -> int:
     return 2
 
 
-def simulate_main(argv: Sequence[str] | None = None) -> int:
+def main(argv: Sequence[str] | None = None) -> int:
     """``ofbe-simulate CONFIG_OR_PROFILE --out raw/<campaign> [--seed N]``.
 
     Returns
@@ -53,4 +53,4 @@ def simulate_main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":  # pragma: no cover
-    sys.exit(simulate_main())
+    sys.exit(main())
