@@ -282,7 +282,7 @@ def _clean_times(body: _Body, t: np.ndarray, max_step: float, modulus: int | Non
         return (d <= 0) | (d > max_step)
 
     def backward(d: np.ndarray) -> np.ndarray:
-        return d >= modulus // 2 if modulus is not None else d <= 0
+        return (d == 0) | (d >= modulus // 2) if modulus is not None else d <= 0
 
     if t.size >= 3:
         d = steps(t)

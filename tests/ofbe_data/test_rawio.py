@@ -107,6 +107,14 @@ def test_corrupted_timestamp_does_not_poison_the_rest(write_text):
     assert rec.diagnostics.skipped[0].line == 9
 
 
+def test_repeated_timestamp_is_skipped(write_text):
+    rows = ["4093012,3,-5,259", "4099679,2,-4,260", "4099679,2,-4,260", "4106346,3,-5,259"]
+    rec = read_ofbe_logger(_logger_file(write_text, rows))
+    assert rec.diagnostics.samples == 3 and np.all(np.diff(rec.t) > 0)
+    assert rec.diagnostics.skipped == (
+        SkippedLine(9, "non-increasing-time", "time stamp 4099679 not after the previous sample"),)
+
+
 def test_saturation_is_flagged_and_out_of_range_rejected(write_text):
     rows = ["4093012,4095,-5,259", "4099679,2,-4096,260", "4106346,3,-5,259", "4113013,5000,0,0"]
     rec = read_ofbe_logger(_logger_file(write_text, rows))
