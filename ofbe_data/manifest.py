@@ -29,7 +29,8 @@ ROLES = ("dut", "reference")
 FORMATS = ("ofbe-logger", "mscip-csv", "csv")
 TIME_UNITS = ("s", "ms", "us")
 ACC_UNITS = ("m/s2", "g", "counts")
-_ID_RE = re.compile(r"^[A-Za-z0-9._-]+$")
+ID_PATTERN = re.compile(r"^[A-Za-z0-9._-]+$")
+"""Campaign, session, device and recording ids."""
 
 
 @dataclass(frozen=True)
@@ -257,7 +258,7 @@ class _Validator:
         return value
 
     def ident(self, value: Any, where: FieldPath) -> str:
-        if not isinstance(value, str) or not _ID_RE.match(value):
+        if not isinstance(value, str) or not ID_PATTERN.match(value):
             raise self.fail(where, "an id of [A-Za-z0-9._-]+", _describe(value))
         return value
 

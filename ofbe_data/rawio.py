@@ -156,7 +156,7 @@ def _read_body(
     body = data[header_offset:]
     header_raw, _ = _next_line(body, 0)
     try:
-        names = [n.strip() for n in header_raw.decode("utf-8").split(delimiter)]
+        names = [n.strip() for n in header_raw.decode("utf-8").lstrip("\ufeff").split(delimiter)]
     except UnicodeDecodeError:
         raise RawFormatError(path, "a column-name line", _show(header_raw), header_line) from None
     missing = [w for w in wanted if w not in names]
@@ -460,7 +460,7 @@ def read_ofbe_logger(path: str | Path, device: str | None = None) -> Recording:
                            gaps, wraps, int(saturated.sum()), boot_lines)
     return Recording(path, "ofbe-logger", t, counts.astype(np.float64) / lsb * G0, saturated,
                      body.lines, _parse_utc(header.get("host_start_utc")), odr,
-                     {k: header[k] for k in header} | ({"device": device} if device else {}),
+                     dict(header) | ({"device": device} if device else {}),
                      diag)
 
 

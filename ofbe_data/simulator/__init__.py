@@ -17,8 +17,8 @@ import yaml
 from tqdm import tqdm
 
 from ofbe_data.atomic import atomic_directory, write_bytes_atomic
-from ofbe_data.errors import OutputExistsError
-from ofbe_data.manifest import _ID_RE
+from ofbe_data.errors import ConfigError, OutputExistsError
+from ofbe_data.manifest import ID_PATTERN
 from ofbe_data.simulator.campaign import (
     CampaignDraw,
     SessionData,
@@ -133,9 +133,7 @@ def simulate_campaign(config: str | Path | SimConfig, out: str | Path, *, seed: 
     cfg = config if isinstance(config, SimConfig) else load_config(config)
     out = Path(out)
     campaign = cfg.campaign or out.name
-    if not _ID_RE.match(campaign):
-        from ofbe_data.errors import ConfigError
-
+    if not ID_PATTERN.match(campaign):
         raise ConfigError(str(config), "campaign", "an id of [A-Za-z0-9._-]+ (or an --out folder "
                           "named like one)", repr(campaign))
     if out.exists() and not force:

@@ -20,7 +20,6 @@ from ofbe_data.atomic import write_bytes_atomic
 from ofbe_data.errors import ConfigError
 from ofbe_data.gravity import G0
 from ofbe_data.manifest import (
-    MANIFEST_FORMAT,
     DeviceSpec,
     RecordingSpec,
     SessionManifest,
@@ -42,6 +41,7 @@ from ofbe_data.simulator.physics import (
 )
 
 TRUTH_FORMAT = "ofbe-truth/1"
+SIMULATION_FORMAT = "ofbe-simulation/1"
 SESSION_SPACING_S = 3600.0
 """Time between power-ons of consecutive sessions (chosen: one per hour)."""
 WARMUP_WAIT_S = 30.0
@@ -651,5 +651,5 @@ def write_session(data: SessionData, folder: Path, truth_path: Path, garble_rate
 
 def truth_config(cfg: SimConfig, seed: int, campaign: str) -> dict[str, Any]:
     """The resolved configuration recorded beside the truth files."""
-    return {"format": MANIFEST_FORMAT.replace("session", "simulation"), "campaign": campaign,
+    return {"format": SIMULATION_FORMAT, "campaign": campaign,
             "seed": seed, "config": config_to_dict(cfg)}

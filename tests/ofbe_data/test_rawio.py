@@ -55,6 +55,19 @@ def test_boot_lines_header_and_units(write_text):
     assert d.skipped == () and d.gaps == () and d.wraps == 0
 
 
+def test_windows_line_ends_and_byte_order_mark(write_text):
+    rows = ["4093012,3,-5,259", "4099679,2,-4", "4106346,3,-5,259"]
+    text = "\ufeff" + (HEADER + "\n".join(rows) + "\n").replace("\n", "\r\n")
+    rec = read_ofbe_logger(write_text("crlf.csv", text.encode("utf-8")))
+    assert rec.n == 2 and rec.diagnostics.lines_read == 3
+    assert rec.diagnostics.skipped == (SkippedLine(8, "field-count", "expected 4 fields, found 3"),)
+    np.testing.assert_array_equal(rec.line, [7, 9])
+    mapping = CsvMapping({"t": "time", "ax": "x", "ay": "y", "az": "z"}, "s", "g")
+    rec = read_generic_csv(write_text("bom.csv", "\ufefftime,x,y,z\r\n0.0,0,0,1\r\n0.01,0,0,1\r\n"),
+                           mapping)
+    assert rec.n == 2 and rec.acc[1, 2] == G0
+
+
 def test_micros_wrap_around_is_undone(write_text):
     rows = ["4294960000,3,-5,259", "4294966667,3,-5,259", "6038,3,-5,259", "12705,3,-5,259"]
     rec = read_ofbe_logger(_logger_file(write_text, rows))
