@@ -96,12 +96,18 @@ def _next_line(data: bytes, offset: int) -> tuple[bytes, int]:
 _MASK_NON_ASCII = bytes(range(128)) + b"?" * 128
 
 
-def _original_field(body: bytes, line_index: int, column: int, delimiter: str) -> bytes:
+def _line_starts(data: bytes) -> np.ndarray:
+    """Byte offsets where each line of ``data`` starts (line ends as pyarrow splits them)."""
+    b = np.frombuffer(data, dtype=np.uint8)
+    lf = b == 0x0A
+    lone_cr = (b == 0x0D) & ~np.append(lf[1:], False)
+    return np.concatenate(([0], np.flatnonzero(lf | lone_cr) + 1))
+
+
+def _original_field(body: bytes, starts: np.ndarray, line_index: int, column: int,
+                    delimiter: str) -> bytes:
     """Field ``column`` of line ``line_index`` (0-based, header = 0) of ``body``, as bytes."""
-    start = 0
-    for _ in range(line_index):
-        start = body.index(b"\n", start) + 1
-    line = _next_line(body, start)[0]
+    line = _next_line(body, int(starts[line_index]))[0]
     fields = line.split(delimiter.encode())
     return fields[column] if column < len(fields) else b""
 
@@ -198,6 +204,7 @@ def _read_body(
     ok = np.ones(table.num_rows, dtype=bool)
     empty = np.ones(table.num_rows, dtype=bool)
     first_bad: dict[int, str] = {}
+    starts: np.ndarray | None = None
     for name, kind in wanted.items():
         col = table.column(name)
         good = pc.match_substring_regex(col, _INT_RE if kind == "int" else _FLOAT_RE)
@@ -206,8 +213,10 @@ def _read_body(
         for i in np.flatnonzero(~good_np & ok):
             raw = col[int(i)].as_py()
             if b"?" in raw:  # masked bytes: quote the original field
-                raw = _original_field(body, int(row_lines[i]) - header_line, names.index(name),
-                                      delimiter)
+                if starts is None:
+                    starts = _line_starts(body)
+                raw = _original_field(body, starts, int(row_lines[i]) - header_line,
+                                      names.index(name), delimiter)
             first_bad[int(i)] = f"field {name!r} is not a number: {_show(raw)}"
         ok &= good_np
     skipped = list(invalid)
