@@ -276,3 +276,40 @@ def test_generic_csv_reads_real_imucal_export(tmp_path):
         # and its offsets ~0.23 m/s², hence the 6 % band
         assert sign * mean[axis] == pytest.approx(9.81, rel=0.06)
         assert np.linalg.norm(mean) == pytest.approx(9.81, rel=0.06)
+
+
+_NOISE = bytes(b for b in range(256) if b not in b"0123456789+-\r\n")
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    seed=st.integers(min_value=0, max_value=2**31),
+    hits=st.lists(st.tuples(st.integers(0, 199), st.integers(0, 40), st.binary(min_size=1,
+                                                                                 max_size=3)),
+                  max_size=12),
+)
+def test_corrupted_lines_never_crash_nor_yield_wrong_values(tmp_path_factory, seed, hits):
+    """Bytes that cannot turn one number into another (no digits, signs or line ends) are
+    inserted into random data lines: the reader must keep only true samples."""
+    rng = np.random.default_rng(seed)
+    n = 200
+    t_us = 4_000_000 + np.cumsum(rng.integers(6500, 6800, n))
+    counts = rng.integers(-300, 300, (n, 3))
+    path = tmp_path_factory.mktemp("fz") / "s.csv"
+
+    def corrupt(lines: list[bytes]) -> list[bytes]:
+        for line_no, pos, junk in hits:
+            junk = bytes(_NOISE[b % len(_NOISE)] for b in junk)
+            line = lines[line_no]
+            lines[line_no] = line[:pos] + junk + line[pos:]
+        return lines
+
+    write_ofbe_logger(path, t_us, counts, LOGGER_META, [], corrupt)
+    rec = read_ofbe_logger(path)
+    truth = {int(t): tuple(c) for t, c in zip(t_us, counts, strict=True)}
+    kept_t = np.rint(rec.t * 1e6).astype(np.int64)
+    kept_c = np.rint(rec.acc / G0 * 256).astype(np.int64)
+    for t, c in zip(kept_t, kept_c, strict=True):
+        assert truth[int(t)] == tuple(c)
+    assert rec.diagnostics.samples + len(rec.diagnostics.skipped) == rec.diagnostics.lines_read
+    assert rec.n >= n - len(hits)
