@@ -129,6 +129,8 @@ class _Body:
     lines: np.ndarray
     lines_read: int
     skipped: list[SkippedLine]
+    path: Path
+    header_line: int
 
 
 def _read_body(
@@ -231,7 +233,7 @@ def _read_body(
         col = pc.utf8_trim_whitespace(pc.cast(table.column(name).filter(keep), pa.string()))
         values[name] = pc.cast(col, pa.int64() if kind == "int" else pa.float64()).to_numpy()
     skipped.sort(key=lambda s: s.line)
-    return _Body(values, row_lines[ok], lines_read, skipped)
+    return _Body(values, row_lines[ok], lines_read, skipped, path, header_line)
 
 
 def _drop(body: _Body, bad: np.ndarray, kind: str, details: Sequence[str] | str) -> None:
@@ -281,6 +283,11 @@ def _clean_times(body: _Body, t: np.ndarray, max_step: float, modulus: int | Non
     t, wraps
         Kept, unwrapped, strictly increasing times (float64, same units) and the number
         of wraps undone.
+
+    Raises
+    ------
+    RawFormatError
+        When no sample is left: every reader ends its line checks here.
     """
 
     def steps(x: np.ndarray) -> np.ndarray:
@@ -315,7 +322,7 @@ def _clean_times(body: _Body, t: np.ndarray, max_step: float, modulus: int | Non
         _drop(body, bad, SKIP_NON_INCREASING_TIME, details)
         t = t[~bad]
     if t.size == 0:
-        return t.astype(np.float64), 0
+        raise RawFormatError(body.path, "at least one valid data line", "none", body.header_line)
     d = steps(t)
     wraps = int(np.count_nonzero(np.diff(t) < 0)) if modulus is not None else 0
     out = np.empty(t.shape, dtype=np.float64)
@@ -461,8 +468,6 @@ def read_ofbe_logger(path: str | Path, device: str | None = None) -> Recording:
     t = t_us / 1e6
     v = body.values
     counts = np.stack([v["ax"], v["ay"], v["az"]], axis=1)
-    if counts.shape[0] == 0:
-        raise RawFormatError(path, "at least one valid data line", "none", col_line)
     saturated = ((counts == -limit) | (counts == limit - 1)).any(axis=1)
     gaps = find_gaps(t, body.lines, 1.0 / odr if odr else None)
     diag = ReadDiagnostics(path, col_line, body.lines_read, int(t.shape[0]), tuple(body.skipped),
@@ -585,8 +590,6 @@ def read_mscip_csv(path: str | Path, device: str | None = None) -> Recording:
     body = _read_body(path, data, col_offset, col_line, ",", wanted)
     t, _ = _clean_times(body, body.values[MSCIP_TIME], MAX_STEP_S)
     v = body.values
-    if t.shape[0] == 0:
-        raise RawFormatError(path, "at least one valid data line", "none", col_line)
     acc = np.stack([v[c] for c in MSCIP_ACCEL], axis=1) * G0
     rate = None
     if "Sample Rate (Hz)" in header:
@@ -687,8 +690,6 @@ def read_generic_csv(path: str | Path, mapping: CsvMapping, device: str | None =
         raise RawFormatError(path, "four distinct mapped columns", repr(c))
     body = _read_body(path, data, offset, col_line, mapping.delimiter, wanted)
     t, _ = _clean_times(body, body.values[c["t"]] * _TIME_SCALE[mapping.time_unit], MAX_STEP_S)
-    if t.shape[0] == 0:
-        raise RawFormatError(path, "at least one valid data line", "none", col_line)
     v = body.values
     acc = np.stack([v[c["ax"]], v[c["ay"]], v[c["az"]]], axis=1) * _acc_scale(mapping)
     gaps = find_gaps(t, body.lines, None)
