@@ -23,6 +23,7 @@ from ofbe_data.simulator.campaign import (
     CampaignDraw,
     SessionData,
     draw_campaign,
+    session_name,
     simulate_session,
     truth_config,
     write_session,
@@ -80,14 +81,14 @@ def generate_sessions(cfg: SimConfig, seed: int | None = None, campaign: str = "
     draw = draw_campaign(cfg, camp_seq)
     idx = range(cfg.sessions) if indices is None else indices
     sessions = [simulate_session(cfg, draw, i, campaign, sess_seqs[i],
-                                 folder / f"{cfg.session_prefix}-pc{i + 1:03d}") for i in idx]
+                                 folder / session_name(cfg, i)) for i in idx]
     return draw, sessions
 
 
 def _write_one(args: tuple[SimConfig, CampaignDraw, int, str, np.random.SeedSequence,
                            np.random.SeedSequence, Path]) -> tuple[int, int]:
     cfg, draw, index, campaign, sess_seq, garble_seq, tmp = args
-    name = f"{cfg.session_prefix}-pc{index + 1:03d}"
+    name = session_name(cfg, index)
     data = simulate_session(cfg, draw, index, campaign, sess_seq, tmp / name)
     write_session(data, tmp / name, tmp / "_truth" / f"{name}.json", cfg.dut_model.garble_rate,
                   garble_seq)

@@ -299,6 +299,11 @@ class SessionData:
     truth: dict[str, Any]
 
 
+def session_name(cfg: SimConfig, index: int) -> str:
+    """Id of session ``index`` (0-based): ``<session_prefix>-pc<NNN>``, NNN = power cycle."""
+    return f"{cfg.session_prefix}-pc{index + 1:03d}"
+
+
 def _utc(base: datetime, seconds: float) -> datetime:
     return base + timedelta(seconds=seconds)
 
@@ -467,7 +472,7 @@ def simulate_session(cfg: SimConfig, draw: CampaignDraw, index: int, campaign: s
     rng = np.random.default_rng(seed_seq)
     m = cfg.dut_model
     base_utc = datetime.fromisoformat(cfg.start_utc.replace("Z", "+00:00"))
-    name = f"{cfg.session_prefix}-pc{index + 1:03d}"
+    name = session_name(cfg, index)
     t_power = index * SESSION_SPACING_S
     b_on = {d.id: rng.normal(0.0, 1.0, 3) * np.asarray(m.turn_on_sigma_mg) * MG for d in cfg.duts}
     uptime0 = {d.id: float(rng.uniform(*m.uptime_s)) for d in cfg.duts}
