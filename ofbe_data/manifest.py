@@ -240,11 +240,10 @@ class _Validator:
     def fail(self, where: FieldPath, expected: str, found: str) -> ManifestError:
         return ManifestError(self.path, format_field(where), expected, found, self.doc.line_of(where))
 
-    def get(self, mapping: dict[str, Any], where: FieldPath, key: str, *, required: bool = True) -> Any:
+    def get(self, mapping: dict[str, Any], where: FieldPath, key: str) -> Any:
+        """``mapping[key]``, or a ManifestError saying the key is missing."""
         if key not in mapping:
-            if required:
-                return self._missing(where, key)
-            return None
+            return self._missing(where, key)
         return mapping[key]
 
     def _missing(self, where: FieldPath, key: str) -> Any:
