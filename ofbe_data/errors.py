@@ -70,7 +70,7 @@ class RawFormatError(OfbeError):
 
 
 class ConfigError(OfbeError):
-    """A simulator configuration (YAML file or profile) is invalid.
+    """A configuration (simulator profile or YAML file, or labelling parameters) is invalid.
 
     Parameters
     ----------

@@ -26,6 +26,7 @@ from ofbe_data.manifest import (
     Site,
     write_manifest,
 )
+from ofbe_data.orientation import roll_pitch
 from ofbe_data.rawio import WRAP_US, format_utc, write_mscip_csv, write_ofbe_logger
 from ofbe_data.simulator.config import SimConfig, config_to_dict
 from ofbe_data.simulator.physics import (
@@ -34,7 +35,6 @@ from ofbe_data.simulator.physics import (
     gauss_markov,
     plate_direction,
     random_unit_vectors,
-    roll_pitch,
     sensor_matrix,
     small_rotation,
     tap_signal,

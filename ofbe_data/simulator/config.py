@@ -9,14 +9,13 @@ docs/sensor-model.md gives the source of every default.
 from __future__ import annotations
 
 import dataclasses
-import types
-import typing
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
 from ofbe_data.errors import ConfigError
+from ofbe_data.typedconfig import from_plain
 from ofbe_data.yamlio import YamlDocument, YamlProblem, read_yaml
 
 Range = tuple[float, float]
@@ -226,68 +225,6 @@ def _load_raw(name_or_path: str | Path, chain: tuple[str, ...] = ()) -> dict[str
     return _deep_merge(_load_raw(base, (*chain, text_source)), data)
 
 
-def _convert(value: Any, tp: Any, source: str, key: str) -> Any:
-    """Convert plain YAML data to the annotated type, or raise ConfigError."""
-    origin = typing.get_origin(tp)
-    args = typing.get_args(tp)
-    if origin in (typing.Union, types.UnionType):
-        if value is None and type(None) in args:
-            return None
-        inner = [a for a in args if a is not type(None)]
-        return _convert(value, inner[0], source, key)
-    if dataclasses.is_dataclass(tp):
-        return _to_dataclass(value, tp, source, key)
-    if tp is bool:
-        if not isinstance(value, bool):
-            raise ConfigError(source, key, "true or false", repr(value))
-        return value
-    if tp is int:
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise ConfigError(source, key, "an integer", repr(value))
-        return value
-    if tp is float:
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            raise ConfigError(source, key, "a number", repr(value))
-        return float(value)
-    if tp is str:
-        if not isinstance(value, str):
-            raise ConfigError(source, key, "a string", repr(value))
-        return value
-    if origin is tuple:
-        if not isinstance(value, list | tuple):
-            raise ConfigError(source, key, "a list", repr(value))
-        if len(args) == 2 and args[1] is Ellipsis:
-            return tuple(_convert(v, args[0], source, f"{key}[{i}]") for i, v in enumerate(value))
-        if len(value) != len(args):
-            raise ConfigError(source, key, f"a list of {len(args)} values", repr(value))
-        return tuple(_convert(v, a, source, f"{key}[{i}]")
-                     for i, (v, a) in enumerate(zip(value, args, strict=True)))
-    if origin is dict:
-        if not isinstance(value, dict):
-            raise ConfigError(source, key, "a mapping", repr(value))
-        return {str(k): _convert(v, args[1], source, f"{key}.{k}") for k, v in value.items()}
-    raise ConfigError(source, key, f"a value of type {tp}", repr(value))  # pragma: no cover
-
-
-def _to_dataclass(data: Any, cls: Any, source: str, prefix: str) -> Any:
-    if not isinstance(data, dict):
-        raise ConfigError(source, prefix or "<document>", "a mapping", repr(data))
-    hints = typing.get_type_hints(cls)
-    names = {f.name for f in dataclasses.fields(cls)}
-    unknown = sorted(set(data) - names)
-    if unknown:
-        key = f"{prefix}.{unknown[0]}" if prefix else unknown[0]
-        raise ConfigError(source, key, "one of " + ", ".join(sorted(names)), "an unknown key")
-    kwargs = {}
-    for name, value in data.items():
-        key = f"{prefix}.{name}" if prefix else name
-        kwargs[name] = _convert(value, hints[name], source, key)
-    try:
-        return cls(**kwargs)
-    except TypeError as exc:
-        raise ConfigError(source, prefix or "<document>", "all required keys", str(exc)) from None
-
-
 def _check(cfg: SimConfig, source: str) -> SimConfig:
     """Semantic checks that types alone do not catch."""
     kinds = ("gravity-aligned", "rotated", "multi-position")
@@ -354,7 +291,7 @@ def load_config(name_or_path: str | Path, overrides: dict[str, Any] | None = Non
     duts = data.get("duts")
     if isinstance(duts, dict):  # allow {id: {...}} as well as a list
         data["duts"] = [{"id": k, **(v or {})} for k, v in duts.items()]
-    cfg = _to_dataclass(data, SimConfig, source, "")
+    cfg = from_plain(data, SimConfig, source)
     return _check(cfg, source)
 
 

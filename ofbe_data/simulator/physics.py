@@ -34,25 +34,6 @@ def plate_direction(roll_deg: float, pitch_deg: float) -> np.ndarray:
     return np.array([-np.sin(theta), np.sin(phi) * np.cos(theta), np.cos(phi) * np.cos(theta)])
 
 
-def roll_pitch(u: np.ndarray) -> tuple[float, float]:
-    """Inverse of :func:`plate_direction`: roll and pitch (degrees) of a direction.
-
-    Parameters
-    ----------
-    u
-        (3,) specific-force direction (any length).
-
-    Returns
-    -------
-    roll_deg, pitch_deg
-        Roll in (−180, 180], pitch in [−90, 90].
-    """
-    u = np.asarray(u, dtype=float) / np.linalg.norm(u)
-    roll = np.degrees(np.arctan2(u[1], u[2]))
-    pitch = np.degrees(np.arcsin(np.clip(-u[0], -1.0, 1.0)))
-    return float(roll), float(pitch)
-
-
 def axis_vector(axis: str) -> np.ndarray:
     """Unit vector of a signed axis name such as ``+z`` or ``-x``."""
     vec = np.zeros(3)

@@ -13,10 +13,11 @@ from ofbe_data.convergence import convergence_index
 from ofbe_data.errors import ConfigError, OutputExistsError
 from ofbe_data.gravity import G0
 from ofbe_data.manifest import load_manifest
+from ofbe_data.orientation import roll_pitch
 from ofbe_data.rawio import read_device_file
 from ofbe_data.simulator import generate_sessions, load_config, simulate_campaign
 from ofbe_data.simulator.campaign import draw_campaign
-from ofbe_data.simulator.physics import MG, plate_direction, roll_pitch
+from ofbe_data.simulator.physics import MG, plate_direction
 
 LSB = G0 / 256.0
 
