@@ -1,0 +1,428 @@
+"""Labelling one session: stationary segments, orientation and the apparent-bias label.
+
+methods.md §Labelling, steps 1–6 and 8, for one session folder. The campaign fit (step 7)
+needs every session of a campaign and lives in :mod:`ofbe_data.campaign_fit`; writing the
+products is :mod:`ofbe_data.labelstore`.
+
+Per recording and DUT device:
+
+1. Stationary segment. Rotated sessions: between the reference's first and last tap, less
+   ``margin_s`` on each side, mapped onto the DUT clock by the tap synchronisation.
+   Sessions without a reference: between the device's own first and last tap when it has
+   two, else the longest run the static detector accepts (less the margin where it borders
+   motion).
+2. Checks, in this order, each a recorded rejection: too many skipped lines (``garbled``),
+   a saturated sample in the segment (``saturated``), motion in the segment (``motion``),
+   fewer than ``min_samples`` samples (``too-short``); the reference's own problems reject
+   every DUT of that recording (``reference-…``).
+3. Label: the mean over the segment minus g·u, u from the reference (rotated, Rodrigues),
+   the nearest axis (gravity-aligned), or the session's norm-constrained fit
+   (multi-position).
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ofbe_data import __version__
+from ofbe_data.campaign_fit import CampaignFitParams
+from ofbe_data.convergence import PAPER_THRESHOLD, PAPER_WINDOW, convergence_index
+from ofbe_data.errors import ConfigError
+from ofbe_data.manifest import DeviceSpec, SessionManifest, load_manifest
+from ofbe_data.multiposition import apparent_biases, fit_poses
+from ofbe_data.orientation import apparent_bias, nearest_axis, rodrigues_label, roll_pitch
+from ofbe_data.rawio import read_device_file
+from ofbe_data.recording import Recording
+from ofbe_data.stationarity import StaticParams, check_static, longest_run
+from ofbe_data.sync import SyncError, SyncParams, SyncResult, detect_taps, synchronise, tap_envelope
+from ofbe_data.typedconfig import from_plain
+from ofbe_data.yamlio import YamlProblem, read_yaml
+
+LABELS_FORMAT = "ofbe-labels/1"
+REJECTIONS_FORMAT = "ofbe-rejections/1"
+
+#: Rejection reasons (``reason`` in the rejection file).
+GARBLED = "garbled"
+SATURATED = "saturated"
+MOTION = "motion"
+TOO_SHORT = "too-short"
+NO_SEGMENT = "no-stationary-segment"
+SYNC_FAILED = "sync-failed"
+UNDETERMINED = "multi-position-undetermined"
+REFERENCE_PREFIX = "reference-"
+
+
+@dataclass(frozen=True)
+class LabelParams:
+    """Parameters of labelling (``label:`` in params.yaml).
+
+    Attributes
+    ----------
+    min_samples
+        Fewest stationary samples a label may rest on (the convergence analysis' result).
+    margin_s
+        Time left out after the first and before the last tap, s.
+    max_skipped_fraction
+        Largest fraction of a file's data lines that may be garbled and skipped.
+    convergence_window, convergence_threshold
+        The paper's convergence criterion (steps, m/s²).
+    multi_position_model
+        ``offset`` or ``scale-offset`` (:func:`ofbe_data.multiposition.fit_poses`).
+    static
+        Static detector.
+    sync
+        Tap synchronisation.
+    campaign_fit
+        Campaign-level refinement.
+    """
+
+    min_samples: int = 4500
+    margin_s: float = 1.0
+    max_skipped_fraction: float = 0.01
+    convergence_window: int = PAPER_WINDOW
+    convergence_threshold: float = PAPER_THRESHOLD
+    multi_position_model: str = "offset"
+    static: StaticParams = field(default_factory=StaticParams)
+    sync: SyncParams = field(default_factory=SyncParams)
+    campaign_fit: CampaignFitParams = field(default_factory=CampaignFitParams)
+
+
+def label_params_from(data: dict[str, Any] | None, source: str | Path = "<parameters>") -> LabelParams:
+    """Build :class:`LabelParams` from a plain mapping, checking keys and types.
+
+    Raises
+    ------
+    ConfigError
+        Unknown key, wrong type, or a value out of range.
+    """
+    params: LabelParams = from_plain(data or {}, LabelParams, source, "label")
+    if params.min_samples < 2:
+        raise ConfigError(source, "label.min_samples", "an integer ≥ 2", str(params.min_samples))
+    if params.margin_s < 0:
+        raise ConfigError(source, "label.margin_s", "a number ≥ 0", str(params.margin_s))
+    if params.multi_position_model not in ("offset", "scale-offset"):
+        raise ConfigError(source, "label.multi_position_model", "offset or scale-offset",
+                          repr(params.multi_position_model))
+    return params
+
+
+def read_label_section(path: str | Path) -> dict[str, Any]:
+    """The plain ``label:`` section of a YAML file (params.yaml), or the whole document when
+    it has none."""
+    try:
+        data = read_yaml(path).data
+    except YamlProblem as exc:
+        raise ConfigError(path, exc.field, exc.expected, exc.found) from None
+    if isinstance(data, dict) and "label" in data:
+        data = data["label"]
+    if data is None:
+        return {}
+    if not isinstance(data, dict):
+        raise ConfigError(path, "label", "a mapping of labelling parameters", type(data).__name__)
+    return data
+
+
+def load_label_params(path: str | Path) -> LabelParams:
+    """Labelling parameters from a YAML file (see :func:`read_label_section`)."""
+    return label_params_from(read_label_section(path), path)
+
+
+@dataclass(frozen=True)
+class Rejection:
+    """A recording of one device that was not labelled, and why."""
+
+    recording: str
+    device: str
+    reason: str
+    detail: str
+
+    def to_dict(self) -> dict[str, str]:
+        return {"recording": self.recording, "device": self.device, "reason": self.reason,
+                "detail": self.detail}
+
+
+@dataclass
+class SessionLabels:
+    """Everything labelling found in one session.
+
+    Attributes
+    ----------
+    manifest
+        The session's manifest.
+    rows
+        One dict per labelled (recording, device), keyed by column name.
+    rejections
+        Recordings not labelled.
+    warnings
+        Things a person should know (e.g. taps missing, header-stamp alignment).
+    files
+        SHA-256 of every file read, by path relative to the session folder (manifest too).
+    means, directions
+        Per row: (3,) mean reading and (3,) gravity direction, for the campaign fit.
+    """
+
+    manifest: SessionManifest
+    rows: list[dict[str, Any]] = field(default_factory=list)
+    rejections: list[Rejection] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    files: dict[str, str] = field(default_factory=dict)
+
+
+def sha256_file(path: str | Path) -> str:
+    """Hex SHA-256 of a file's bytes."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+@dataclass(frozen=True)
+class _Segment:
+    """Samples [start, stop) of a recording chosen as stationary, or why none."""
+
+    start: int
+    stop: int
+    problem: str = ""
+
+
+def _own_segment(rec: Recording, params: LabelParams) -> tuple[_Segment, bool]:
+    """Stationary segment of a recording without a reference: between its own taps, else the
+    longest static run. Returns the segment and whether taps bounded it."""
+    env = tap_envelope(rec.t, rec.acc, params.sync.highpass_s)
+    taps = detect_taps(rec.t, env, params.sync)
+    if taps.size >= 2:
+        a = int(np.searchsorted(rec.t, taps[0] + params.margin_s, side="left"))
+        b = int(np.searchsorted(rec.t, taps[-1] - params.margin_s, side="right"))
+        return _Segment(a, max(a, b)), True
+    static = check_static(rec.acc, rec.fs_hz, params.static)
+    a, b = longest_run(static.static)
+    if b <= a:
+        return _Segment(0, 0, "the static detector found no still part"), False
+    margin = int(round(params.margin_s * rec.fs_hz))
+    if a > 0:
+        a += margin
+    if b < rec.n:
+        b -= margin
+    return _Segment(a, max(a, b)), False
+
+
+def _quality(rec: Recording, seg: _Segment, params: LabelParams, min_samples: int | None = None,
+             ) -> tuple[str, str] | None:
+    """First problem that forbids a label on this segment, as (reason, detail).
+
+    ``min_samples`` defaults to ``params.min_samples`` (the DUT's rule; a reference only
+    needs enough samples for a mean)."""
+    need = params.min_samples if min_samples is None else min_samples
+    d = rec.diagnostics
+    skipped = len(d.skipped)
+    if d.lines_read and skipped / d.lines_read > params.max_skipped_fraction:
+        return GARBLED, (f"{skipped} of {d.lines_read} data lines skipped "
+                         f"({skipped / d.lines_read:.2%} > {params.max_skipped_fraction:.2%})")
+    if seg.problem:
+        return NO_SEGMENT, seg.problem
+    sat = int(rec.saturated[seg.start:seg.stop].sum())
+    if sat:
+        first = int(rec.line[seg.start + int(np.argmax(rec.saturated[seg.start:seg.stop]))])
+        return SATURATED, f"{sat} saturated samples in the stationary segment (first at line {first})"
+    n = seg.stop - seg.start
+    if n >= 2:
+        check = check_static(rec.acc[seg.start:seg.stop], rec.fs_hz, params.static)
+        if check.moving_samples:
+            first = int(rec.line[seg.start + int(np.argmin(check.static))])
+            return MOTION, (f"{check.moving_samples} of {n} samples in the stationary segment are "
+                            f"moving (from line {first}; moving-std peak "
+                            f"{np.sqrt(check.peak):.3g} m/s² against a threshold of "
+                            f"{np.sqrt(check.threshold):.3g} m/s²)")
+    if n < need:
+        return TOO_SHORT, f"{n} stationary samples, at least {need} needed"
+    return None
+
+
+def _base_row(m: SessionManifest, rec_id: str, dev: DeviceSpec, rec: Recording, seg: _Segment,
+              files: dict[str, str], rel: str, params: LabelParams) -> dict[str, Any]:
+    x = rec.acc[seg.start:seg.stop]
+    conv = [convergence_index(x[:, i], params.convergence_window, params.convergence_threshold)
+            for i in range(3)]
+    return {
+        "campaign": m.campaign, "session": m.session, "recording": rec_id, "device": dev.id,
+        "kind": m.kind, "power_cycle": m.power_cycle, "n_samples": int(x.shape[0]),
+        "fs_hz": float(rec.fs_hz), "g_local": float(m.g_local),
+        "convergence_x": conv[0], "convergence_y": conv[1], "convergence_z": conv[2],
+        "sync_offset_s": None, "sync_drift_ppm": None, "sync_residual_s": None,
+        "sync_method": None, "raw_sha256": files[rel], "raw_file": rel,
+        "segment_start_s": float(rec.t[seg.start]), "segment_end_s": float(rec.t[seg.stop - 1]),
+        "std_x": float(x[:, 0].std()), "std_y": float(x[:, 1].std()), "std_z": float(x[:, 2].std()),
+        "skipped_lines": len(rec.diagnostics.skipped),
+        "missing_samples": rec.diagnostics.missing_samples,
+        "offset_x": None, "offset_y": None, "offset_z": None, "fit_condition": None,
+        "_mean": x.mean(axis=0),
+    }
+
+
+def _finish_row(row: dict[str, Any], bias: np.ndarray, u: np.ndarray, method: str) -> None:
+    roll, pitch = roll_pitch(u)
+    row.update({"bias_x": float(bias[0]), "bias_y": float(bias[1]), "bias_z": float(bias[2]),
+                "gravity_x": float(u[0]), "gravity_y": float(u[1]), "gravity_z": float(u[2]),
+                "roll_deg": roll, "pitch_deg": pitch, "label_method": method, "_u": u})
+
+
+def _ref_segment(ref: Recording, sync: SyncResult, params: LabelParams) -> tuple[float, float, str]:
+    """Stationary window on the reference clock: between the first and last tap."""
+    taps = sync.taps_ref_s
+    if len(taps) >= 2:
+        return taps[0] + params.margin_s, taps[-1] - params.margin_s, ""
+    seg, _ = _own_segment(ref, params)
+    if seg.problem:
+        return 0.0, 0.0, seg.problem
+    return float(ref.t[seg.start]), float(ref.t[seg.stop - 1]), ""
+
+
+def _label_rotated(out: SessionLabels, rec_id: str, recs: dict[str, Recording],
+                   rels: dict[str, str], params: LabelParams) -> None:
+    m = out.manifest
+    ref_spec = m.reference
+    assert ref_spec is not None
+    ref = recs[ref_spec.id]
+    for dev in m.duts:
+        rec = recs[dev.id]
+        try:
+            sync = synchronise(rec, ref, dev.reference_to_sensor, params.sync)
+        except SyncError as exc:
+            out.rejections.append(Rejection(rec_id, dev.id, SYNC_FAILED, str(exc)))
+            continue
+        if sync.warning:
+            out.warnings.append(f"{rec_id}/{dev.id}: {sync.warning}")
+        s0, s1, problem = _ref_segment(ref, sync, params)
+        r0, r1 = np.searchsorted(ref.t, [s0, s1], side="left"), np.searchsorted(ref.t, s1, "right")
+        ref_seg = _Segment(int(r0[0]), int(max(r0[0], r1)), problem)
+        bad = _quality(ref, ref_seg, params, min_samples=2)
+        if bad is not None:
+            out.rejections.append(Rejection(rec_id, dev.id, REFERENCE_PREFIX + bad[0],
+                                            f"{rels[ref_spec.id]}: {bad[1]}"))
+            continue
+        t_ref = sync.to_reference(rec.t)
+        a = int(np.searchsorted(t_ref, s0, side="left"))
+        b = int(np.searchsorted(t_ref, s1, side="right"))
+        seg = _Segment(a, max(a, b))
+        bad = _quality(rec, seg, params)
+        if bad is not None:
+            out.rejections.append(Rejection(rec_id, dev.id, *bad))
+            continue
+        row = _base_row(m, rec_id, dev, rec, seg, out.files, rels[dev.id], params)
+        ref_mean = ref.acc[ref_seg.start:ref_seg.stop].mean(axis=0)
+        N = np.eye(3) if dev.reference_to_sensor is None else dev.reference_to_sensor
+        bias, u = rodrigues_label(row["_mean"], ref_mean, N, m.g_local)
+        _finish_row(row, bias, u, "reference-rodrigues")
+        row.update({"sync_offset_s": sync.offset_s, "sync_drift_ppm": sync.drift_ppm,
+                    "sync_residual_s": None if np.isnan(sync.residual_s) else sync.residual_s,
+                    "sync_method": sync.method})
+        out.rows.append(row)
+
+
+def _label_alone(out: SessionLabels, rec_id: str, recs: dict[str, Recording],
+                 rels: dict[str, str], params: LabelParams) -> list[dict[str, Any]]:
+    """Rows (without label) of the DUTs of a recording with no reference."""
+    m = out.manifest
+    rows = []
+    for dev in m.duts:
+        rec = recs[dev.id]
+        seg, tapped = _own_segment(rec, params)
+        bad = _quality(rec, seg, params)
+        if bad is not None:
+            out.rejections.append(Rejection(rec_id, dev.id, *bad))
+            continue
+        if not tapped and (seg.start > 0 or seg.stop < rec.n):
+            out.warnings.append(f"{rec_id}/{dev.id}: no taps; stationary part found by the static "
+                                f"detector at lines {int(rec.line[seg.start])}–"
+                                f"{int(rec.line[seg.stop - 1])}")
+        rows.append(_base_row(m, rec_id, dev, rec, seg, out.files, rels[dev.id], params))
+    return rows
+
+
+def _label_multi_position(out: SessionLabels, rows: list[dict[str, Any]], params: LabelParams) -> None:
+    """Norm-constrained fit per device over the session's poses; labels every pose."""
+    m = out.manifest
+    for dev in m.duts:
+        mine = [r for r in rows if r["device"] == dev.id]
+        if not mine:
+            continue
+        means = np.array([r["_mean"] for r in mine])
+        fit = fit_poses(means, m.g_local, params.multi_position_model)
+        if not fit.determined:
+            for r in mine:
+                out.rejections.append(Rejection(r["recording"], dev.id, UNDETERMINED,
+                                                f"the session's poses do not determine the offset: "
+                                                f"{fit.reason}"))
+            continue
+        biases = apparent_biases(means, fit, m.g_local)
+        for r, b, u in zip(mine, biases, fit.directions, strict=True):
+            _finish_row(r, b, u, "multi-position")
+            r.update({"offset_x": float(fit.offset[0]), "offset_y": float(fit.offset[1]),
+                      "offset_z": float(fit.offset[2]), "fit_condition": float(fit.condition)})
+            out.rows.append(r)
+
+
+def label_session(folder: str | Path, params: LabelParams = LabelParams()) -> SessionLabels:
+    """Label every (recording, DUT) of one session folder.
+
+    Parameters
+    ----------
+    folder
+        Session folder (with ``session.yaml``) or the manifest itself.
+    params
+        Labelling parameters.
+
+    Returns
+    -------
+    SessionLabels
+        Rows for the labelled recordings, rejections with reasons, warnings and file hashes.
+        Offsets from the campaign fit are filled later (:mod:`ofbe_data.labelstore`).
+
+    Raises
+    ------
+    ManifestError
+        The manifest is invalid.
+    RawFormatError
+        A file cannot be read (missing, empty, no data line, wrong header…).
+    """
+    m = load_manifest(folder)
+    out = SessionLabels(m)
+    out.files["session.yaml"] = sha256_file(m.path)
+    for rec_spec in m.recordings:
+        recs: dict[str, Recording] = {}
+        rels: dict[str, str] = {}
+        for dev_id, rel in rec_spec.files.items():
+            path = m.file_path(rec_spec, dev_id)
+            recs[dev_id] = read_device_file(path, m.devices[dev_id])
+            out.files[rel] = sha256_file(path)
+            rels[dev_id] = rel
+        if m.kind == "rotated":
+            _label_rotated(out, rec_spec.id, recs, rels, params)
+            continue
+        rows = _label_alone(out, rec_spec.id, recs, rels, params)
+        if m.kind == "gravity-aligned":
+            for row in rows:
+                u = nearest_axis(row["_mean"])
+                _finish_row(row, apparent_bias(row["_mean"], u, m.g_local), u, "level")
+                out.rows.append(row)
+        else:
+            out.rows.extend(rows)  # labelled once all poses are in
+    if m.kind == "multi-position":
+        pending, out.rows = out.rows, []
+        _label_multi_position(out, pending, params)
+    return out
+
+
+def provenance(labels: SessionLabels, params: LabelParams) -> dict[str, Any]:
+    """What a label file was made from: toolkit version, parameters, file hashes."""
+    import dataclasses
+
+    return {"format": LABELS_FORMAT, "toolkit": "ofbe", "toolkit_version": __version__,
+            "campaign": labels.manifest.campaign, "session": labels.manifest.session,
+            "parameters": dataclasses.asdict(params), "files_sha256": dict(sorted(labels.files.items()))}

@@ -1,0 +1,176 @@
+"""Label products: the campaign fit over labelled sessions, and the files of products.md.
+
+``processed/labels/<campaign>/<session>.parquet`` (one row per labelled recording and DUT,
+provenance in the Parquet metadata under ``ofbe``), ``<session>.rejected.json`` (rejections
+and warnings) and ``campaign_fit.json`` (the fit of every device, or why there is none).
+Every file is written to a temporary name and renamed.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from ofbe_data import __version__
+from ofbe_data.atomic import write_bytes_atomic
+from ofbe_data.campaign_fit import DeviceFit, fit_device
+from ofbe_data.labels import REJECTIONS_FORMAT, LabelParams, SessionLabels, provenance
+
+CAMPAIGN_FIT_FORMAT = "ofbe-campaign-fit/1"
+
+#: Columns of a label file, in order, with their Arrow types (products.md plus extras).
+LABEL_SCHEMA = pa.schema([
+    ("campaign", pa.string()), ("session", pa.string()), ("recording", pa.string()),
+    ("device", pa.string()), ("kind", pa.string()), ("power_cycle", pa.int64()),
+    ("n_samples", pa.int64()), ("fs_hz", pa.float64()), ("g_local", pa.float64()),
+    ("bias_x", pa.float64()), ("bias_y", pa.float64()), ("bias_z", pa.float64()),
+    ("offset_x", pa.float64()), ("offset_y", pa.float64()), ("offset_z", pa.float64()),
+    ("gravity_x", pa.float64()), ("gravity_y", pa.float64()), ("gravity_z", pa.float64()),
+    ("roll_deg", pa.float64()), ("pitch_deg", pa.float64()),
+    ("convergence_x", pa.int64()), ("convergence_y", pa.int64()), ("convergence_z", pa.int64()),
+    ("label_method", pa.string()),
+    ("sync_offset_s", pa.float64()), ("sync_drift_ppm", pa.float64()),
+    ("sync_residual_s", pa.float64()), ("raw_sha256", pa.string()),
+    # extras
+    ("sync_method", pa.string()), ("raw_file", pa.string()),
+    ("segment_start_s", pa.float64()), ("segment_end_s", pa.float64()),
+    ("std_x", pa.float64()), ("std_y", pa.float64()), ("std_z", pa.float64()),
+    ("skipped_lines", pa.int64()), ("missing_samples", pa.int64()), ("fit_condition", pa.float64()),
+])
+
+
+def fit_campaign(sessions: Sequence[SessionLabels], params: LabelParams) -> dict[str, DeviceFit]:
+    """Run the campaign fit per device over the rotated sessions given, and fill offsets.
+
+    Rows of devices whose fit is determined get ``offset_*`` (their power cycle's offset),
+    ``fit_condition``, and ``label_method = "campaign-fit"``; ``bias_*`` stays the direct
+    apparent bias. Sessions of other kinds are left as they are.
+
+    Parameters
+    ----------
+    sessions
+        Labelled sessions of one campaign.
+    params
+        Labelling parameters (``campaign_fit``).
+
+    Returns
+    -------
+    dict
+        Fit per device id (rotated campaigns only).
+    """
+    rows = [r for s in sessions if s.manifest.kind == "rotated" for r in s.rows]
+    if not rows or not params.campaign_fit.enabled:
+        return {}
+    fits = {}
+    for device in sorted({r["device"] for r in rows}):
+        mine = [r for r in rows if r["device"] == device]
+        fit = fit_device(device, np.array([r["_u"] for r in mine]), np.array([r["_mean"] for r in mine]),
+                         np.array([r["power_cycle"] for r in mine]),
+                         float(np.mean([r["g_local"] for r in mine])), params.campaign_fit)
+        fits[device] = fit
+        if fit.determined:
+            for r in mine:
+                b = fit.offsets[r["power_cycle"]]
+                r.update({"offset_x": float(b[0]), "offset_y": float(b[1]), "offset_z": float(b[2]),
+                          "fit_condition": fit.condition, "label_method": "campaign-fit"})
+    return fits
+
+
+def labels_table(labels: SessionLabels, params: LabelParams) -> pa.Table:
+    """The session's rows as an Arrow table in :data:`LABEL_SCHEMA`, provenance attached."""
+    names = LABEL_SCHEMA.names
+    data = {n: [r.get(n) for r in labels.rows] for n in names}
+    table = pa.Table.from_pydict(data, schema=LABEL_SCHEMA)
+    meta = {b"ofbe": json.dumps(provenance(labels, params), sort_keys=True).encode()}
+    return table.replace_schema_metadata(meta)
+
+
+def _parquet_bytes(table: pa.Table) -> bytes:
+    buf = io.BytesIO()
+    pq.write_table(table, buf, compression="zstd")
+    return buf.getvalue()
+
+
+def _json_bytes(obj: Any) -> bytes:
+    return (json.dumps(obj, indent=2, sort_keys=False, allow_nan=False) + "\n").encode()
+
+
+def session_outputs(labels: SessionLabels, out_dir: str | Path) -> tuple[Path, Path]:
+    """Paths of the label and rejection files of a session under ``out_dir``."""
+    base = Path(out_dir) / labels.manifest.campaign
+    return base / f"{labels.manifest.session}.parquet", base / f"{labels.manifest.session}.rejected.json"
+
+
+def write_session(labels: SessionLabels, params: LabelParams, out_dir: str | Path) -> tuple[Path, Path]:
+    """Write ``<session>.parquet`` and ``<session>.rejected.json`` atomically.
+
+    Returns
+    -------
+    The two paths written.
+    """
+    parquet_path, rejected_path = session_outputs(labels, out_dir)
+    parquet_path.parent.mkdir(parents=True, exist_ok=True)
+    m = labels.manifest
+    rejected = {"format": REJECTIONS_FORMAT, "toolkit_version": __version__, "campaign": m.campaign,
+                "session": m.session, "labelled": len(labels.rows),
+                "rejected": [r.to_dict() for r in labels.rejections], "warnings": labels.warnings}
+    write_bytes_atomic(parquet_path, _parquet_bytes(labels_table(labels, params)))
+    write_bytes_atomic(rejected_path, _json_bytes(rejected))
+    return parquet_path, rejected_path
+
+
+def write_campaign_fit(campaign: str, fits: dict[str, DeviceFit], sessions: Sequence[SessionLabels],
+                       params: LabelParams, out_dir: str | Path) -> Path:
+    """Write ``<campaign>/campaign_fit.json``: every device's fit or why there is none."""
+    import dataclasses
+
+    path = Path(out_dir) / campaign / "campaign_fit.json"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    kinds = sorted({s.manifest.kind for s in sessions})
+    note = "" if fits else ("no rotated sessions: offsets come from the multi-position fit"
+                            if kinds == ["multi-position"] else
+                            "no reference: the orientations of gravity-aligned sessions do not "
+                            "determine the map A, so zero-g offsets stay unknown"
+                            if "rotated" not in kinds else "campaign fit disabled")
+    doc = {"format": CAMPAIGN_FIT_FORMAT, "toolkit_version": __version__, "campaign": campaign,
+           "model": "m_k = g_local * A @ u_k + b_(power cycle of k)",
+           "sessions": sorted(s.manifest.session for s in sessions), "note": note,
+           "parameters": dataclasses.asdict(params.campaign_fit),
+           "devices": {d: f.to_dict() for d, f in sorted(fits.items())}}
+    write_bytes_atomic(path, _json_bytes(doc))
+    return path
+
+
+def read_labels(path: str | Path) -> pd.DataFrame:
+    """Read label files (one file, or every ``*.parquet`` in a folder) into one frame.
+
+    Parameters
+    ----------
+    path
+        A ``<session>.parquet`` file or a campaign folder of them.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Rows in file-name order; nullable offsets as NaN.
+    """
+    p = Path(path)
+    files = sorted(p.glob("*.parquet")) if p.is_dir() else [p]
+    tables = [pq.read_table(f) for f in files]
+    if not tables:
+        return LABEL_SCHEMA.empty_table().to_pandas()
+    return pa.concat_tables([t.replace_schema_metadata(None) for t in tables]).to_pandas()
+
+
+def read_provenance(path: str | Path) -> dict[str, Any]:
+    """The provenance stored in a label file's Parquet metadata."""
+    meta = pq.read_schema(path).metadata or {}
+    return json.loads(meta[b"ofbe"])
