@@ -32,7 +32,7 @@ def expand_sessions(paths: Sequence[str | Path]) -> list[Path]:
     """Session folders named by the arguments, in order, without repeats.
 
     A folder holding ``session.yaml`` (or the manifest itself) is a session; a folder whose
-    subfolders hold sessions is a campaign (its sessions in name order; ``_truth`` and other
+    subfolders hold sessions is a campaign (its sessions in name order; the simulator's truth folder and other
     folders without a manifest are ignored).
 
     Raises

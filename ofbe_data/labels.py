@@ -73,6 +73,9 @@ class LabelParams:
         The paper's convergence criterion (steps, m/s²).
     multi_position_model
         ``offset`` or ``scale-offset`` (:func:`ofbe_data.multiposition.fit_poses`).
+    multi_position_max_condition
+        Largest condition number of a session's pose fit (good pose sets give 1–2, nearly
+        coplanar ones thousands).
     static
         Static detector.
     sync
@@ -87,6 +90,7 @@ class LabelParams:
     convergence_window: int = PAPER_WINDOW
     convergence_threshold: float = PAPER_THRESHOLD
     multi_position_model: str = "offset"
+    multi_position_max_condition: float = 1000.0
     static: StaticParams = field(default_factory=StaticParams)
     sync: SyncParams = field(default_factory=SyncParams)
     campaign_fit: CampaignFitParams = field(default_factory=CampaignFitParams)
@@ -353,7 +357,8 @@ def _label_multi_position(out: SessionLabels, rows: list[dict[str, Any]], params
         if not mine:
             continue
         means = np.array([r["_mean"] for r in mine])
-        fit = fit_poses(means, m.g_local, params.multi_position_model)
+        fit = fit_poses(means, m.g_local, params.multi_position_model,
+                        params.multi_position_max_condition)
         if not fit.determined:
             for r in mine:
                 out.rejections.append(Rejection(r["recording"], dev.id, UNDETERMINED,

@@ -8,13 +8,12 @@ import pathlib
 from pathlib import Path
 
 import ofbe_data
-from ofbe_data.manifest import load_manifest
-from ofbe_data.rawio import read_device_file
+from ofbe_data.labels import LabelParams, label_session
 
 SIMULATOR_ONLY = {"simulator"}
 
 
-def test_readers_do_not_open_truth_files(examples, monkeypatch):
+def test_labelling_does_not_open_truth_files(examples, monkeypatch):
     opened: list[str] = []
     real_open, real_io_open = builtins.open, io.open
     real_read_bytes, real_read_text = pathlib.Path.read_bytes, pathlib.Path.read_text
@@ -41,12 +40,9 @@ def test_readers_do_not_open_truth_files(examples, monkeypatch):
     monkeypatch.setattr(pathlib.Path, "read_text", spy_read_text)
     n_files = 0
     for manifest_path in sorted(examples.glob("*/*/session.yaml")):
-        manifest = load_manifest(manifest_path.parent)
-        for rec in manifest.recordings:
-            for dev_id, dev in manifest.devices.items():
-                read_device_file(manifest.file_path(rec, dev_id), dev)
-                n_files += 1
-    assert n_files == 30
+        labels = label_session(manifest_path.parent, LabelParams(min_samples=500))
+        n_files += len(labels.files) - 1  # the manifest is hashed too
+    assert n_files == 36
     assert any(p.endswith("session.yaml") for p in opened)
     assert not [p for p in opened if "_truth" in p]
 
