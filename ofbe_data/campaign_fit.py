@@ -145,7 +145,8 @@ def fit_device(device: str, u: np.ndarray, mean: np.ndarray, power_cycle: np.nda
     X = design_matrix(u, idx, j, g)
     norms = np.linalg.norm(X, axis=0)
     sv = np.linalg.svd(X / norms, compute_uv=False)
-    condition = float(sv[0] / sv[-1]) if sv[-1] > 1e-12 * sv[0] else float("inf")
+    full_rank = sv.size == X.shape[1] and sv[-1] > 1e-12 * sv[0]
+    condition = float(sv[0] / sv[-1]) if full_rank else float("inf")
     if not condition <= params.max_condition:
         return DeviceFit(device, k, j, False,
                          f"the orientations do not determine A: condition number {condition:.3g} > "
