@@ -193,6 +193,7 @@ class _Segment:
     start: int
     stop: int
     problem: str = ""
+    static_checked: bool = False  # chosen by the static detector itself: no second check
 
 
 def _own_segment(rec: Recording, params: LabelParams) -> tuple[_Segment, bool]:
@@ -213,7 +214,7 @@ def _own_segment(rec: Recording, params: LabelParams) -> tuple[_Segment, bool]:
         a += margin
     if b < rec.n:
         b -= margin
-    return _Segment(a, max(a, b)), False
+    return _Segment(a, max(a, b), static_checked=True), False
 
 
 def _quality(rec: Recording, seg: _Segment, params: LabelParams, min_samples: int | None = None,
@@ -235,7 +236,7 @@ def _quality(rec: Recording, seg: _Segment, params: LabelParams, min_samples: in
         first = int(rec.line[seg.start + int(np.argmax(rec.saturated[seg.start:seg.stop]))])
         return SATURATED, f"{sat} saturated samples in the stationary segment (first at line {first})"
     n = seg.stop - seg.start
-    if n >= 2:
+    if n >= 2 and not seg.static_checked:
         check = check_static(rec.acc[seg.start:seg.stop], rec.fs_hz, params.static)
         if check.moving_samples:
             first = int(rec.line[seg.start + int(np.argmin(check.static))])

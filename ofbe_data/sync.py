@@ -63,7 +63,7 @@ class SyncParams:
     tap_noise_factor: float = 8.0
     tap_merge_s: float = 1.0
     search_s: float = 0.5
-    coarse_step_s: float = 0.001
+    coarse_step_s: float = 0.004
     fine_range_s: float = 0.012
     lag_step_s: float = 0.0002
     min_signed_correlation: float = 0.5
@@ -220,13 +220,19 @@ def _lag_at(t_dut: np.ndarray, x_dut: np.ndarray, t_ref: np.ndarray, x_ref: np.n
     td, xd = t_dut[sel], x_dut[sel]
     xd = xd - xd.mean(axis=0)
     tq = (td - to_ref)[None, :] - lags[:, None]
+    # only the reference samples the search can reach are interpolated
+    lo = max(int(np.searchsorted(t_ref, tq.min())) - 1, 0)
+    hi = int(np.searchsorted(t_ref, tq.max())) + 1
+    tr = t_ref[lo:hi]
     score = np.zeros(lags.size)
     energy_r = np.zeros(lags.size)
     for c in range(xd.shape[1]):
-        xr = np.interp(tq.ravel(), t_ref, x_ref[:, c], left=np.nan, right=np.nan).reshape(tq.shape)
-        xr = xr - np.nanmean(xr, axis=1, keepdims=True)
-        score += np.nansum(xr * xd[None, :, c], axis=1)
-        energy_r += np.nansum(xr * xr, axis=1)
+        # outside the reference's span np.interp repeats its edge value: a constant, which the
+        # mean removal turns into zero correlation
+        xr = np.interp(tq, tr, x_ref[lo:hi, c]) if tr.size else np.zeros_like(tq)
+        xr -= xr.mean(axis=1, keepdims=True)
+        score += xr @ xd[:, c]
+        energy_r += np.einsum("ij,ij->i", xr, xr)
     score = score / np.sqrt(energy_r * float(np.sum(xd * xd)) + 1e-30)
     k = int(np.argmax(score))
     lag = float(lags[k])

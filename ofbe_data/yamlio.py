@@ -60,6 +60,10 @@ def _check_duplicates(node: yaml.Node, path: list[str | int]) -> None:
             _check_duplicates(item, [*path, i])
 
 
+_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+"""libyaml's safe loader when PyYAML was built with it (same safe constructors, ~10× faster)."""
+
+
 class YamlDocument:
     """A parsed YAML document that remembers where each field sits.
 
@@ -75,16 +79,20 @@ class YamlDocument:
     """
 
     def __init__(self, text: str) -> None:
+        loader = _LOADER(text)
         try:
-            self._root = yaml.compose(text, Loader=yaml.SafeLoader)
+            # one parse: compose (keeps line numbers), check duplicates, then construct
+            self._root = loader.get_single_node()
             if self._root is not None:
                 _check_duplicates(self._root, [])
-            self.data: Any = yaml.safe_load(text)
+            self.data: Any = loader.construct_document(self._root) if self._root is not None else None
         except yaml.MarkedYAMLError as exc:
             mark = exc.problem_mark or exc.context_mark
             line = mark.line + 1 if mark is not None else None
             problem = exc.problem or exc.context or "a syntax error"
             raise YamlProblem("<document>", "valid YAML", problem, line) from None
+        finally:
+            loader.dispose()
 
     def line_of(self, path: FieldPath) -> int | None:
         """1-based line of the field at ``path`` (or of its deepest existing parent)."""

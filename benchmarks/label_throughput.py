@@ -1,0 +1,213 @@
+"""Time labelling both paper-size campaigns against a bare pyarrow CSV parse of the same files.
+
+Usage: python benchmarks/label_throughput.py [--raw DIR] [--jobs N [N ...]] [--repeat N]
+                                             [--profile] [--profile-campaign NAME]
+
+Simulates the gravity-aligned and rotated campaigns into a temporary folder (or uses
+``DIR/gravity-aligned`` and ``DIR/rotated`` from ``--raw``), then measures:
+
+- labelling both campaigns end to end (``label_sessions``: read, label, campaign fit,
+  write the products) for each ``--jobs`` setting, best of ``--repeat`` runs;
+- a bare parse of every data file every manifest names, single process: read the bytes,
+  mask bytes >= 0x80 (pyarrow decodes a malformed row as UTF-8 before its invalid-row
+  handler sees it, and the simulated serial link writes such bytes), and
+  ``pyarrow.csv.read_csv`` with the preamble skipped (boot and ``#`` lines of ofbe-logger
+  files, the 5 lines before the column line of mscip-csv files), quoting off, malformed rows
+  skipped, pyarrow's own type inference, no threads. The column line is found by a byte
+  search outside the timed part.
+
+Prints files, MB, samples, the times, samples/s and the ratio labelling / bare parse (the
+issue's target is a ratio of at most 2 for one process). With ``--profile`` it also runs
+cProfile over labelling one campaign in one process and prints the top 25 functions by
+cumulative and by own time. Nothing is asserted: this is a measurement.
+"""
+
+from __future__ import annotations
+
+import argparse
+import cProfile
+import pstats
+import tempfile
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import pyarrow as pa
+import pyarrow.csv as pacsv
+
+from ofbe_data.label_cli import Outcome, expand_sessions, label_sessions
+from ofbe_data.labels import LabelParams
+from ofbe_data.manifest import load_manifest
+from ofbe_data.simulator import simulate_campaign
+
+CAMPAIGNS = ("gravity-aligned", "rotated")
+TARGET_RATIO = 2.0
+COLUMN_LINES = {"ofbe-logger": b"t_us,", "mscip-csv": b"Time (s),"}
+FIRST_COLUMN = {"ofbe-logger": "t_us", "mscip-csv": "Time (s)"}
+_MASK_NON_ASCII = bytes(range(128)) + b"?" * 128
+
+
+@dataclass(frozen=True)
+class DataFile:
+    """One device file named by a manifest, with where its column line is."""
+
+    path: Path
+    format: str
+    skip_rows: int
+    size: int
+
+
+def _count_lines(data: bytes) -> int:
+    """Lines in ``data`` as pyarrow splits them (\\n, \\r\\n and lone \\r)."""
+    return data.count(b"\n") + data.count(b"\r") - data.count(b"\r\n")
+
+
+def _column_line_index(path: Path, fmt: str, skip_rows: int | None) -> int:
+    """Number of lines before the column-name line (found by a byte search)."""
+    if skip_rows is not None:  # generic csv: the manifest says how many
+        return skip_rows
+    data = path.read_bytes()
+    marker = COLUMN_LINES[fmt]
+    pos = data.find(marker)
+    while pos > 0 and data[pos - 1 : pos] not in (b"\n", b"\r"):  # must start a line
+        pos = data.find(marker, pos + 1)
+    if pos < 0:
+        raise SystemExit(f"{path}: no line starting with {marker!r}")
+    return _count_lines(data[:pos])
+
+
+def data_files(folders: Sequence[Path]) -> list[DataFile]:
+    """Every device file of every recording of the given sessions, in manifest order."""
+    out: list[DataFile] = []
+    for folder in folders:
+        m = load_manifest(folder)
+        for rec in m.recordings:
+            for dev_id in rec.files:
+                dev = m.devices[dev_id]
+                path = m.file_path(rec, dev_id)
+                skip = dev.csv.skip_rows if dev.format == "csv" and dev.csv is not None else None
+                out.append(DataFile(path, dev.format, _column_line_index(path, dev.format, skip),
+                                    path.stat().st_size))
+    return out
+
+
+@dataclass
+class ParseResult:
+    """Bare-parse totals."""
+
+    seconds: float
+    read_mask_s: float
+    rows: int
+    non_numeric_files: int
+
+
+def bare_parse(files: Sequence[DataFile]) -> ParseResult:
+    """Parse every file with pyarrow alone (see the module docstring); single process."""
+    rows = non_numeric = 0
+    read_mask_s = 0.0
+    start = time.perf_counter()
+    for f in files:
+        t0 = time.perf_counter()
+        data = f.path.read_bytes().translate(_MASK_NON_ASCII)
+        read_mask_s += time.perf_counter() - t0
+        table = pacsv.read_csv(
+            pa.BufferReader(data),
+            # one block per file, so type inference sees the whole column
+            read_options=pacsv.ReadOptions(use_threads=False, skip_rows=f.skip_rows,
+                                           block_size=max(1 << 20, f.size + 1)),
+            parse_options=pacsv.ParseOptions(quote_char=False, invalid_row_handler=lambda _: "skip"),
+        )
+        if table.column_names[0] != FIRST_COLUMN.get(f.format, table.column_names[0]):
+            raise SystemExit(f"{f.path}: skip_rows={f.skip_rows} lands on {table.column_names!r}")
+        rows += table.num_rows
+        if not all(pa.types.is_integer(t) or pa.types.is_floating(t) for t in table.schema.types):
+            non_numeric += 1
+    return ParseResult(time.perf_counter() - start, read_mask_s, rows, non_numeric)
+
+
+def time_labelling(folders: Sequence[Path], jobs: int, repeat: int, scratch: Path
+                   ) -> tuple[float, list[Outcome]]:
+    """Best wall-clock seconds of ``repeat`` end-to-end labelling runs, and the last outcomes."""
+    best = float("inf")
+    outcomes: list[Outcome] = []
+    for i in range(repeat):
+        out_dir = scratch / f"labels-j{jobs}-r{i}"
+        start = time.perf_counter()
+        outcomes = label_sessions(folders, LabelParams(), out_dir, jobs=jobs, progress=False)
+        best = min(best, time.perf_counter() - start)
+    return best, outcomes
+
+
+def profile_labelling(folders: Sequence[Path], out_dir: Path, top: int = 25) -> None:
+    """cProfile over labelling ``folders`` in one process; print the top functions."""
+    prof = cProfile.Profile()
+    prof.enable()
+    label_sessions(folders, LabelParams(), out_dir, jobs=1, progress=False)
+    prof.disable()
+    stats = pstats.Stats(prof).strip_dirs()
+    for key in ("cumulative", "tottime"):
+        print(f"\n--- top {top} by {key} ---")
+        stats.sort_stats(key).print_stats(top)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--raw", type=Path, default=None,
+                        help="folder holding gravity-aligned/ and rotated/ (default: simulate into a temp)")
+    parser.add_argument("--jobs", type=int, nargs="+", default=[1, 2])
+    parser.add_argument("--repeat", type=int, default=1, help="best of this many runs (default: 1)")
+    parser.add_argument("--profile", action="store_true", help="cProfile labelling of one campaign")
+    parser.add_argument("--profile-campaign", choices=CAMPAIGNS, default="rotated")
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory(prefix="ofbe-label-bench-") as tmp:
+        scratch = Path(tmp)
+        raw = args.raw
+        if raw is None:
+            raw = scratch / "raw"
+            for profile in CAMPAIGNS:
+                start = time.perf_counter()
+                result = simulate_campaign(profile, raw / profile, jobs=2, progress=False)
+                print(f"simulated {profile:16s}: {result.sessions} sessions, "
+                      f"{result.bytes / 1e6:.1f} MB in {time.perf_counter() - start:.2f} s")
+        campaign_dirs = [raw / c for c in CAMPAIGNS]
+        folders = expand_sessions(campaign_dirs)
+        files = data_files(folders)
+        total_mb = sum(f.size for f in files) / 1e6
+
+        parse = bare_parse(files)
+        samples = parse.rows
+        print(f"data: {len(folders)} sessions, {len(files)} files, {total_mb:.1f} MB, "
+              f"{samples / 1e6:.2f} M samples (rows the bare parse kept)")
+        print(f"bare pyarrow parse, 1 process: {parse.seconds:.2f} s = {samples / parse.seconds / 1e6:.2f} M "
+              f"samples/s, {total_mb / parse.seconds:.0f} MB/s (read + mask {parse.read_mask_s:.2f} s; "
+              f"{parse.non_numeric_files} files with a non-numeric column from garbling)")
+
+        times: dict[int, float] = {}
+        for jobs in args.jobs:
+            seconds, outcomes = time_labelling(folders, jobs, args.repeat, scratch)
+            times[jobs] = seconds
+            labelled = [o.labels for o in outcomes if o.labels is not None]
+            rows = sum(len(s.rows) for s in labelled)
+            rejected = sum(len(s.rejections) for s in labelled)
+            failed = sum(1 for o in outcomes if o.error)
+            print(f"label both campaigns jobs={jobs}: {seconds:.2f} s (best of {args.repeat}) = "
+                  f"{samples / seconds / 1e6:.2f} M samples/s, {total_mb / seconds:.0f} MB/s; "
+                  f"{rows} labelled, {rejected} rejected, {failed} sessions failed")
+        for jobs, seconds in times.items():
+            note = f"target <= {TARGET_RATIO:.0f}" if jobs == 1 else "the target is for jobs=1"
+            print(f"ratio labelling(jobs={jobs}) / bare parse (1 process): "
+                  f"{seconds / parse.seconds:.2f} ({note})")
+        if 1 in times:
+            for jobs, seconds in times.items():
+                if jobs != 1:
+                    print(f"speed-up jobs={jobs} vs jobs=1: {times[1] / seconds:.2f}x")
+
+        if args.profile:
+            camp = expand_sessions([raw / args.profile_campaign])
+            print(f"\nprofile: labelling {args.profile_campaign} ({len(camp)} sessions), 1 process")
+            profile_labelling(camp, scratch / "labels-profile")
+
+
+if __name__ == "__main__":
+    main()
