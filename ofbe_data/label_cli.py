@@ -75,8 +75,11 @@ def _run_one(args: tuple[Path, LabelParams]) -> Outcome:
         return Outcome(folder, label_session(folder, params))
     except OfbeError as exc:
         return Outcome(folder, error=str(exc))
-    except (OSError, ValueError) as exc:  # unreadable input the readers did not classify
+    except OSError as exc:  # unreadable input the readers did not classify
         return Outcome(folder, error=f"{folder}: {type(exc).__name__}: {exc}")
+    except Exception as exc:  # noqa: BLE001 - a bad session must never stop the others
+        return Outcome(folder, error=f"{folder}: internal error while labelling ({type(exc).__name__}: "
+                                     f"{exc}); please report it with this session")
 
 
 def label_sessions(folders: Sequence[Path], params: LabelParams, out_dir: Path, jobs: int = 1,

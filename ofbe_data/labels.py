@@ -121,7 +121,10 @@ def read_label_section(path: str | Path) -> dict[str, Any]:
     try:
         data = read_yaml(path).data
     except YamlProblem as exc:
-        raise ConfigError(path, exc.field, exc.expected, exc.found) from None
+        raise ConfigError(f"{path}:{exc.line}" if exc.line else path, exc.field, exc.expected,
+                          exc.found) from None
+    except OSError as exc:
+        raise ConfigError(path, "<file>", "a readable YAML file", exc.strerror or str(exc)) from None
     if isinstance(data, dict) and "label" in data:
         data = data["label"]
     if data is None:
@@ -214,7 +217,9 @@ def _own_segment(rec: Recording, params: LabelParams) -> tuple[_Segment, bool]:
         a += margin
     if b < rec.n:
         b -= margin
-    return _Segment(a, max(a, b), static_checked=True), False
+    if b <= a:
+        return _Segment(0, 0, "the static detector found no still part longer than the margins"), False
+    return _Segment(a, b, static_checked=True), False
 
 
 def _quality(rec: Recording, seg: _Segment, params: LabelParams, min_samples: int | None = None,

@@ -198,6 +198,8 @@ def _read_body(
         Columns as int64 / float64 arrays over the valid lines only.
     """
     body = data[header_offset:]
+    if body and body[-1:] not in (b"\n", b"\r"):
+        body += b"\n"  # pyarrow cannot skip a column line that has no line end
     header_raw, _ = _next_line(body, 0)
     try:
         names = [n.strip() for n in header_raw.decode("utf-8").lstrip("\ufeff").split(delimiter)]
@@ -279,9 +281,17 @@ def _read_body(
     values: dict[str, np.ndarray] = {}
     for name, kind in wanted.items():
         col = pc.utf8_trim_whitespace(pc.cast(table.column(name).filter(keep), pa.string()))
+        col = pc.utf8_ltrim(col, "+")  # the patterns allow a plus sign, pyarrow's casts do not
         values[name] = pc.cast(col, pa.int64() if kind == "int" else pa.float64()).to_numpy()
     skipped.sort(key=lambda s: s.line)
-    return _Body(values, row_lines[ok], lines_read, skipped, path, header_line)
+    out = _Body(values, row_lines[ok], lines_read, skipped, path, header_line)
+    for name, kind in wanted.items():
+        if kind == "float":  # an exponent beyond float64's range parses as ±inf
+            overflow = ~np.isfinite(out.values[name])
+            _drop(out, overflow, SKIP_NON_NUMERIC,
+                  [f"field {name!r} is out of float64 range: {out.values[name][i]}"
+                   for i in np.flatnonzero(overflow)])
+    return out
 
 
 def _drop(body: _Body, bad: np.ndarray, kind: str, details: Sequence[str] | str) -> None:
@@ -311,8 +321,9 @@ def _clean_times(body: _Body, t: np.ndarray, max_step: float, modulus: int | Non
 
     Works on whole arrays. A sample whose steps from and to its neighbours are both
     abnormal (not positive, or longer than ``max_step``) while the step between the
-    neighbours is normal is dropped as inconsistent; remaining backward steps drop the
-    later sample. With ``modulus`` (an unsigned counter), steps are taken modulo it, so a
+    neighbours is normal is dropped as inconsistent; then every sample not after all the
+    samples kept before it is dropped (a block of any length that jumps back). With
+    ``modulus`` (an unsigned counter), steps are taken modulo it, so a
     wrap is a normal step and is undone.
 
     Parameters
@@ -359,14 +370,17 @@ def _clean_times(body: _Body, t: np.ndarray, max_step: float, modulus: int | Non
         details = [f"time stamp {t[i]} inconsistent with its neighbours" for i in np.flatnonzero(spike)]
         _drop(body, spike, SKIP_NON_INCREASING_TIME, details)
         t = t[~spike]
-    for _ in range(16):
-        if t.size < 2:
-            break
+    if t.size >= 2:
+        # a sample must come after every sample kept before it: compare with the running
+        # maximum of the (signed, unwrapped) times, so a whole block that jumps back is dropped
+        signed = steps(t).astype(np.float64)
+        if modulus is not None:
+            signed[signed >= modulus // 2] -= modulus
+        u = np.concatenate(([0.0], np.cumsum(signed)))
+        before = np.maximum.accumulate(u)
         bad = np.zeros(t.shape, dtype=bool)
-        bad[1:] = backward(steps(t))
-        if not bad.any():
-            break
-        details = [f"time stamp {t[i]} not after the previous sample" for i in np.flatnonzero(bad)]
+        bad[1:] = u[1:] <= before[:-1]
+        details = [f"time stamp {t[i]} not after an earlier sample" for i in np.flatnonzero(bad)]
         _drop(body, bad, SKIP_NON_INCREASING_TIME, details)
         t = t[~bad]
     if t.size == 0:

@@ -125,7 +125,7 @@ def test_repeated_timestamp_is_skipped(write_text):
     rec = read_ofbe_logger(_logger_file(write_text, rows))
     assert rec.diagnostics.samples == 3 and np.all(np.diff(rec.t) > 0)
     assert rec.diagnostics.skipped == (
-        SkippedLine(9, "non-increasing-time", "time stamp 4099679 not after the previous sample"),)
+        SkippedLine(9, "non-increasing-time", "time stamp 4099679 not after an earlier sample"),)
 
 
 def test_saturation_is_flagged_and_out_of_range_rejected(write_text):
