@@ -22,6 +22,7 @@ Per recording and DUT device:
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -39,7 +40,7 @@ from ofbe_data.orientation import apparent_bias, nearest_axis, rodrigues_label, 
 from ofbe_data.rawio import read_device_file
 from ofbe_data.recording import Recording
 from ofbe_data.stationarity import StaticParams, check_static, longest_run
-from ofbe_data.sync import SyncError, SyncParams, SyncResult, detect_taps, synchronise, tap_envelope
+from ofbe_data.sync import SyncError, SyncParams, synchronise, tap_signals
 from ofbe_data.typedconfig import from_plain
 from ofbe_data.yamlio import YamlProblem, read_yaml
 
@@ -169,8 +170,9 @@ class SessionLabels:
         Things a person should know (e.g. taps missing, header-stamp alignment).
     files
         SHA-256 of every file read, by path relative to the session folder (manifest too).
-    means, directions
-        Per row: (3,) mean reading and (3,) gravity direction, for the campaign fit.
+
+    Rows also carry two private entries for the campaign fit, not written out: ``_mean``
+    (3,) mean reading and ``_u`` (3,) gravity direction, sensor frame.
     """
 
     manifest: SessionManifest
@@ -199,11 +201,10 @@ class _Segment:
     static_checked: bool = False  # chosen by the static detector itself: no second check
 
 
-def _own_segment(rec: Recording, params: LabelParams) -> tuple[_Segment, bool]:
-    """Stationary segment of a recording without a reference: between its own taps, else the
-    longest static run. Returns the segment and whether taps bounded it."""
-    env = tap_envelope(rec.t, rec.acc, params.sync.highpass_s)
-    taps = detect_taps(rec.t, env, params.sync)
+def _own_segment(rec: Recording, taps: np.ndarray, params: LabelParams) -> tuple[_Segment, bool]:
+    """Stationary segment of a recording from its own signal: between its first and last tap
+    (``taps``, s, its clock), else the longest static run. Returns the segment and whether
+    taps bounded it."""
     if taps.size >= 2:
         a = int(np.searchsorted(rec.t, taps[0] + params.margin_s, side="left"))
         b = int(np.searchsorted(rec.t, taps[-1] - params.margin_s, side="right"))
@@ -282,15 +283,21 @@ def _finish_row(row: dict[str, Any], bias: np.ndarray, u: np.ndarray, method: st
                 "roll_deg": roll, "pitch_deg": pitch, "label_method": method, "_u": u})
 
 
-def _ref_segment(ref: Recording, sync: SyncResult, params: LabelParams) -> tuple[float, float, str]:
-    """Stationary window on the reference clock: between the first and last tap."""
-    taps = sync.taps_ref_s
-    if len(taps) >= 2:
-        return taps[0] + params.margin_s, taps[-1] - params.margin_s, ""
-    seg, _ = _own_segment(ref, params)
-    if seg.problem:
-        return 0.0, 0.0, seg.problem
-    return float(ref.t[seg.start]), float(ref.t[seg.stop - 1]), ""
+def _reference_window(ref: Recording, taps: np.ndarray, params: LabelParams,
+                      ) -> tuple[float, float, _Segment]:
+    """The stationary window on the reference clock, (start, end) s, and its samples.
+
+    Between the reference's first and last tap less the margins; without two taps, the
+    reference's own longest static run."""
+    if taps.size >= 2:
+        s0, s1, problem = taps[0] + params.margin_s, taps[-1] - params.margin_s, ""
+    else:
+        seg, _ = _own_segment(ref, taps, params)
+        s0, s1, problem = ((0.0, 0.0, seg.problem) if seg.problem else
+                           (float(ref.t[seg.start]), float(ref.t[seg.stop - 1]), ""))
+    r0 = int(np.searchsorted(ref.t, s0, side="left"))
+    r1 = int(np.searchsorted(ref.t, s1, side="right"))
+    return s0, s1, _Segment(r0, max(r0, r1), problem)
 
 
 def _label_rotated(out: SessionLabels, rec_id: str, recs: dict[str, Recording],
@@ -299,22 +306,22 @@ def _label_rotated(out: SessionLabels, rec_id: str, recs: dict[str, Recording],
     ref_spec = m.reference
     assert ref_spec is not None
     ref = recs[ref_spec.id]
+    # the reference's signals, window and checks do not depend on the DUT: once per recording
+    ref_sig = tap_signals(ref, params.sync)
+    s0, s1, ref_seg = _reference_window(ref, ref_sig.taps, params)
+    ref_bad = _quality(ref, ref_seg, params, min_samples=2)
     for dev in m.duts:
         rec = recs[dev.id]
         try:
-            sync = synchronise(rec, ref, dev.reference_to_sensor, params.sync)
+            sync = synchronise(rec, ref, dev.reference_to_sensor, params.sync, ref_sig)
         except SyncError as exc:
             out.rejections.append(Rejection(rec_id, dev.id, SYNC_FAILED, str(exc)))
             continue
         if sync.warning:
             out.warnings.append(f"{rec_id}/{dev.id}: {sync.warning}")
-        s0, s1, problem = _ref_segment(ref, sync, params)
-        r0, r1 = np.searchsorted(ref.t, [s0, s1], side="left"), np.searchsorted(ref.t, s1, "right")
-        ref_seg = _Segment(int(r0[0]), int(max(r0[0], r1)), problem)
-        bad = _quality(ref, ref_seg, params, min_samples=2)
-        if bad is not None:
-            out.rejections.append(Rejection(rec_id, dev.id, REFERENCE_PREFIX + bad[0],
-                                            f"{rels[ref_spec.id]}: {bad[1]}"))
+        if ref_bad is not None:
+            out.rejections.append(Rejection(rec_id, dev.id, REFERENCE_PREFIX + ref_bad[0],
+                                            f"{rels[ref_spec.id]}: {ref_bad[1]}"))
             continue
         t_ref = sync.to_reference(rec.t)
         a = int(np.searchsorted(t_ref, s0, side="left"))
@@ -342,7 +349,7 @@ def _label_alone(out: SessionLabels, rec_id: str, recs: dict[str, Recording],
     rows = []
     for dev in m.duts:
         rec = recs[dev.id]
-        seg, tapped = _own_segment(rec, params)
+        seg, tapped = _own_segment(rec, tap_signals(rec, params.sync).taps, params)
         bad = _quality(rec, seg, params)
         if bad is not None:
             out.rejections.append(Rejection(rec_id, dev.id, *bad))
@@ -432,8 +439,6 @@ def label_session(folder: str | Path, params: LabelParams = LabelParams()) -> Se
 
 def provenance(labels: SessionLabels, params: LabelParams) -> dict[str, Any]:
     """What a label file was made from: toolkit version, parameters, file hashes."""
-    import dataclasses
-
     return {"format": LABELS_FORMAT, "toolkit": "ofbe", "toolkit_version": __version__,
             "campaign": labels.manifest.campaign, "session": labels.manifest.session,
             "parameters": dataclasses.asdict(params), "files_sha256": dict(sorted(labels.files.items()))}

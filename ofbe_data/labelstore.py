@@ -8,6 +8,7 @@ Every file is written to a temporary name and renamed.
 
 from __future__ import annotations
 
+import dataclasses
 import io
 import json
 from collections.abc import Sequence
@@ -130,8 +131,6 @@ def write_session(labels: SessionLabels, params: LabelParams, out_dir: str | Pat
 def write_campaign_fit(campaign: str, fits: dict[str, DeviceFit], sessions: Sequence[SessionLabels],
                        params: LabelParams, out_dir: str | Path) -> Path:
     """Write ``<campaign>/campaign_fit.json``: every device's fit or why there is none."""
-    import dataclasses
-
     path = Path(out_dir) / campaign / "campaign_fit.json"
     path.parent.mkdir(parents=True, exist_ok=True)
     kinds = sorted({s.manifest.kind for s in sessions})

@@ -146,14 +146,6 @@ def highpass(t: np.ndarray, acc: np.ndarray, highpass_s: float) -> np.ndarray:
     return x - (c[hi] - c[lo]) / (hi - lo)[:, None]
 
 
-def tap_envelope(t: np.ndarray, acc: np.ndarray, highpass_s: float) -> np.ndarray:
-    """Norm of the high-passed specific force, ``‖f − moving_mean(f)‖``, m/s², shape (N,).
-
-    The same in every frame, so taps are found without knowing the mount.
-    """
-    return np.linalg.norm(highpass(t, acc, highpass_s), axis=1)
-
-
 def detect_taps(t: np.ndarray, envelope: np.ndarray, params: SyncParams) -> np.ndarray:
     """Times of the taps in one recording.
 
@@ -180,6 +172,33 @@ def detect_taps(t: np.ndarray, envelope: np.ndarray, params: SyncParams) -> np.n
     breaks = np.flatnonzero(np.diff(t[hot]) > params.tap_merge_s)
     groups = np.split(hot, breaks + 1)
     return np.array([t[g[np.argmax(envelope[g])]] for g in groups])
+
+
+@dataclass(frozen=True)
+class TapSignals:
+    """One recording's tap-related signals, computed once and shared by every pairing.
+
+    Attributes
+    ----------
+    highpassed
+        (N, 3) high-passed specific force, m/s², the recording's own frame.
+    envelope
+        (N,) tap envelope ``‖highpassed‖``, m/s² (the same in every frame, so taps are
+        found without knowing the mount).
+    taps
+        (K,) tap times on the recording's clock, s.
+    """
+
+    highpassed: np.ndarray
+    envelope: np.ndarray
+    taps: np.ndarray
+
+
+def tap_signals(rec: Recording, params: SyncParams) -> TapSignals:
+    """High-pass a recording, take its tap envelope and find its taps."""
+    hp = highpass(rec.t, rec.acc, params.highpass_s)
+    envelope = np.linalg.norm(hp, axis=1)
+    return TapSignals(hp, envelope, detect_taps(rec.t, envelope, params))
 
 
 def _lag_at(t_dut: np.ndarray, x_dut: np.ndarray, t_ref: np.ndarray, x_ref: np.ndarray,
@@ -256,7 +275,8 @@ def coarse_offset(dut: Recording, ref: Recording) -> float:
 
 
 def synchronise(dut: Recording, ref: Recording, reference_to_sensor: np.ndarray | None = None,
-                params: SyncParams = SyncParams()) -> SyncResult:
+                params: SyncParams = SyncParams(), ref_signals: TapSignals | None = None,
+                ) -> SyncResult:
     """Fit the DUT clock to the reference clock (coarse stamps, then taps).
 
     Each tap is aligned in two stages: the tap envelopes (frame-free, robust) to within a
@@ -273,6 +293,9 @@ def synchronise(dut: Recording, ref: Recording, reference_to_sensor: np.ndarray 
         (3, 3) nominal rotation from the reference frame to the DUT frame (identity if None).
     params
         Detection and search parameters.
+    ref_signals
+        The reference's :func:`tap_signals` when already computed (one reference serves
+        every DUT of a recording).
 
     Returns
     -------
@@ -287,12 +310,13 @@ def synchronise(dut: Recording, ref: Recording, reference_to_sensor: np.ndarray 
     """
     N = np.eye(3) if reference_to_sensor is None else np.asarray(reference_to_sensor, float)
     coarse = coarse_offset(dut, ref)
-    hp_ref = highpass(ref.t, ref.acc, params.highpass_s) @ N.T
-    hp_dut = highpass(dut.t, dut.acc, params.highpass_s)
-    e_ref = np.linalg.norm(hp_ref, axis=1)[:, None]
-    e_dut = np.linalg.norm(hp_dut, axis=1)[:, None]
-    taps_ref = detect_taps(ref.t, e_ref[:, 0], params)
-    taps_dut = detect_taps(dut.t, e_dut[:, 0], params)
+    ref_sig = tap_signals(ref, params) if ref_signals is None else ref_signals
+    dut_sig = tap_signals(dut, params)
+    hp_ref = ref_sig.highpassed @ N.T  # the reference's signed signal in DUT axes
+    hp_dut = dut_sig.highpassed
+    e_ref = ref_sig.envelope[:, None]
+    e_dut = dut_sig.envelope[:, None]
+    taps_ref, taps_dut = ref_sig.taps, dut_sig.taps
 
     def fallback(why: str) -> SyncResult:
         if not np.isfinite(coarse):
@@ -334,16 +358,15 @@ def synchronise(dut: Recording, ref: Recording, reference_to_sensor: np.ndarray 
     drift = float(slope - 1.0)
     if abs(drift) * 1e6 > params.max_drift_ppm:
         return fallback(f"tap fit gave an implausible drift of {drift * 1e6:.0f} ppm")
-    fitted = SyncResult(float(offset), drift * 1e6, float("nan"), "taps", (), coarse)
     # residual: re-measure each tap's lag under the fitted clock map
     again = []
     for tr in x:
-        centre = float(fitted.to_device(tr))
+        centre = float(offset + slope * tr)
         again.append(_lag_at(dut.t, hp_dut, ref.t, hp_ref, centre, centre - tr, fine_lags,
                              params.window_s)[0])
     residual = float(np.sqrt(np.nanmean(np.square(again))))
     warning = ("signed tap signals did not match through the nominal mount at "
                + ", ".join(weak) + "; envelope alignment used there (check reference_to_sensor)"
                if weak else "")
-    return SyncResult(fitted.offset_s, fitted.drift_ppm, residual, "taps",
-                      tuple(map(float, taps_ref)), coarse, warning)
+    return SyncResult(float(offset), drift * 1e6, residual, "taps", tuple(map(float, taps_ref)),
+                      coarse, warning)
