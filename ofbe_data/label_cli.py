@@ -20,8 +20,7 @@ from tqdm import tqdm
 from ofbe_data.errors import OfbeError
 from ofbe_data.labels import LabelParams, SessionLabels, label_params_from, label_session, read_label_section
 from ofbe_data.labelstore import fit_campaign, write_campaign_fit, write_session
-
-MANIFEST = "session.yaml"
+from ofbe_data.manifest import MANIFEST_NAME
 
 
 class UsageError(OfbeError):
@@ -43,14 +42,14 @@ def expand_sessions(paths: Sequence[str | Path]) -> list[Path]:
     out: list[Path] = []
     for arg in paths:
         p = Path(arg)
-        if p.is_file() and p.name == MANIFEST:
+        if p.is_file() and p.name == MANIFEST_NAME:
             p = p.parent
-        if (p / MANIFEST).is_file():
+        if (p / MANIFEST_NAME).is_file():
             found = [p]
         elif p.is_dir():
-            found = sorted(c for c in p.iterdir() if c.is_dir() and (c / MANIFEST).is_file())
+            found = sorted(c for c in p.iterdir() if c.is_dir() and (c / MANIFEST_NAME).is_file())
             if not found:
-                raise UsageError(f"{p}: expected a session folder (with {MANIFEST}) or a campaign "
+                raise UsageError(f"{p}: expected a session folder (with {MANIFEST_NAME}) or a campaign "
                                  f"folder of sessions, found a folder with neither")
         else:
             raise UsageError(f"{p}: expected a session or campaign folder, found no such folder")

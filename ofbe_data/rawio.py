@@ -137,6 +137,14 @@ _NUMBER_BYTES = b"0123456789+-.eE\r\n"
 _INT_LIMIT = 10**18  # the validating path accepts at most 18 digits
 
 
+def _row_lines(invalid: Sequence[SkippedLine], header_line: int, lines_read: int) -> np.ndarray:
+    """File line of every parsed row: the data lines less those pyarrow handed to the
+    invalid-row handler, (rows,) int64."""
+    bad = np.array(sorted(s.line for s in invalid), dtype=np.int64)
+    every = np.arange(header_line + 1, header_line + 1 + lines_read, dtype=np.int64)
+    return np.setdiff1d(every, bad, assume_unique=True)
+
+
 def _read_typed(body: bytes, header_raw: bytes, delimiter: str, wanted: Mapping[str, str],
                 parse: Callable[[bytes, dict[str, pa.DataType]], pa.Table],
                 ) -> tuple[pa.Table, dict[str, np.ndarray]] | None:
@@ -235,9 +243,7 @@ def _read_body(
     fast = _read_typed(body, header_raw, delimiter, wanted, parse)
     if fast is not None:
         table, values = fast
-        bad_lines = np.array(sorted(s.line for s in invalid), dtype=np.int64)
-        all_lines = np.arange(header_line + 1, header_line + 1 + lines_read, dtype=np.int64)
-        row_lines = np.setdiff1d(all_lines, bad_lines, assume_unique=True)
+        row_lines = _row_lines(invalid, header_line, lines_read)
         if row_lines.shape[0] == table.num_rows:
             return _Body(values, row_lines, lines_read, sorted(invalid, key=lambda s: s.line), path,
                          header_line)
@@ -248,9 +254,7 @@ def _read_body(
         table = parse(body.translate(_MASK_NON_ASCII), {n: pa.binary() for n in names})
     except pa.ArrowInvalid as exc:
         raise RawFormatError(path, "CSV data lines", f"unreadable data ({exc})", header_line) from None
-    bad_lines = np.array(sorted(s.line for s in invalid), dtype=np.int64)
-    all_lines = np.arange(header_line + 1, header_line + 1 + lines_read, dtype=np.int64)
-    row_lines = np.setdiff1d(all_lines, bad_lines, assume_unique=True)
+    row_lines = _row_lines(invalid, header_line, lines_read)
     if row_lines.shape[0] != table.num_rows:  # pragma: no cover - pyarrow contract
         raise RawFormatError(path, f"{row_lines.shape[0]} parsed rows", str(table.num_rows))
     ok = np.ones(table.num_rows, dtype=bool)
