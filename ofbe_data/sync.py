@@ -154,7 +154,7 @@ def detect_taps(t: np.ndarray, envelope: np.ndarray, params: SyncParams) -> np.n
     t
         (N,) s.
     envelope
-        (N,) tap envelope, m/s² (:func:`tap_envelope`).
+        (N,) tap envelope, m/s² (:attr:`TapSignals.envelope`).
     params
         Threshold and merging parameters.
 
