@@ -6,6 +6,9 @@ at the first k where the mean of the last ``window`` values of d is below ``thre
 
 from __future__ import annotations
 
+import dataclasses
+from dataclasses import dataclass
+
 import numpy as np
 
 PAPER_WINDOW = 40
@@ -57,3 +60,95 @@ def convergence_index(x: np.ndarray, window: int = PAPER_WINDOW,
     avg = (c[window:] - c[:-window]) / window  # avg[i] = mean(d[i:i+window]), ends at k=i+window+1
     hits = np.flatnonzero(avg < threshold)
     return int(hits[0] + window + 1) if hits.size else -1
+
+
+def step_average(x: np.ndarray, window: int = PAPER_WINDOW) -> np.ndarray:
+    """The criterion's statistic: mean of the last ``window`` running-mean steps.
+
+    Parameters
+    ----------
+    x
+        (N,) one axis, m/s².
+    window
+        Number of steps averaged.
+
+    Returns
+    -------
+    ndarray, shape (N,)
+        Element k−1 is the value at k samples (NaN until ``window`` steps exist); the signal
+        has converged at the first k where it is below the threshold.
+    """
+    m = running_mean(x)
+    out = np.full(m.shape[0], np.nan)
+    if m.shape[0] <= window:
+        return out
+    c = np.concatenate(([0.0], np.cumsum(np.abs(np.diff(m)))))
+    out[window:] = (c[window:] - c[:-window]) / window
+    return out
+
+
+@dataclass(frozen=True)
+class AxisConvergence:
+    """Convergence indices of one axis over many recordings (samples).
+
+    Attributes
+    ----------
+    n
+        Recordings analysed.
+    n_not_converged
+        Recordings whose running mean never met the criterion (left out of the statistics).
+    mean, std, median, p05, p95, min, max
+        Of the converged recordings' indices; NaN when none converged. ``std`` is the
+        sample standard deviation (ddof = 1).
+    """
+
+    n: int
+    n_not_converged: int
+    mean: float
+    std: float
+    median: float
+    p05: float
+    p95: float
+    min: float
+    max: float
+
+    def to_dict(self) -> dict[str, float | int]:
+        return dataclasses.asdict(self)
+
+
+def axis_statistics(indices: np.ndarray) -> AxisConvergence:
+    """Summary of convergence indices, (N,) int, −1 meaning never converged."""
+    idx = np.asarray(indices, dtype=np.int64)
+    ok = idx[idx >= 0].astype(np.float64)
+    if ok.size == 0:
+        nan = float("nan")
+        return AxisConvergence(int(idx.size), int(idx.size), nan, nan, nan, nan, nan, nan, nan)
+    p05, med, p95 = np.percentile(ok, [5, 50, 95])
+    return AxisConvergence(
+        n=int(idx.size), n_not_converged=int(idx.size - ok.size), mean=float(ok.mean()),
+        std=float(ok.std(ddof=1)) if ok.size > 1 else 0.0, median=float(med), p05=float(p05),
+        p95=float(p95), min=float(ok.min()), max=float(ok.max()))
+
+
+STATISTICS = ("mean", "mean+std", "median", "p95")
+"""Statistics a recommendation may be based on."""
+
+
+def recommend_min_samples(stats: AxisConvergence, statistic: str = "mean", round_to: int = 100) -> int:
+    """The recommended fewest samples per label from one axis' convergence statistics.
+
+    The paper takes the mean convergence index of x (≈4500 samples); ``statistic`` allows a
+    more conservative choice. The value is rounded up to a multiple of ``round_to``.
+
+    Raises
+    ------
+    ValueError
+        Unknown statistic, or no recording converged.
+    """
+    value = {"mean": stats.mean, "mean+std": stats.mean + stats.std, "median": stats.median,
+             "p95": stats.p95}.get(statistic)
+    if value is None:
+        raise ValueError(f"statistic: expected one of {', '.join(STATISTICS)}, found {statistic!r}")
+    if not np.isfinite(value):
+        raise ValueError(f"no recording converged ({stats.n} analysed): nothing to recommend")
+    return int(np.ceil(value / round_to) * round_to)

@@ -41,8 +41,7 @@ from ofbe_data.rawio import read_device_file
 from ofbe_data.recording import Recording
 from ofbe_data.stationarity import StaticParams, check_static, longest_run
 from ofbe_data.sync import SyncError, SyncParams, synchronise, tap_signals
-from ofbe_data.typedconfig import from_plain
-from ofbe_data.yamlio import YamlProblem, read_yaml
+from ofbe_data.typedconfig import from_plain, read_section
 
 LABELS_FORMAT = "ofbe-labels/1"
 REJECTIONS_FORMAT = "ofbe-rejections/1"
@@ -119,20 +118,7 @@ def label_params_from(data: dict[str, Any] | None, source: str | Path = "<parame
 def read_label_section(path: str | Path) -> dict[str, Any]:
     """The plain ``label:`` section of a YAML file (params.yaml), or the whole document when
     it has none."""
-    try:
-        data = read_yaml(path).data
-    except YamlProblem as exc:
-        raise ConfigError(f"{path}:{exc.line}" if exc.line else path, exc.field, exc.expected,
-                          exc.found) from None
-    except OSError as exc:
-        raise ConfigError(path, "<file>", "a readable YAML file", exc.strerror or str(exc)) from None
-    if isinstance(data, dict) and "label" in data:
-        data = data["label"]
-    if data is None:
-        return {}
-    if not isinstance(data, dict):
-        raise ConfigError(path, "label", "a mapping of labelling parameters", type(data).__name__)
-    return data
+    return read_section(path, "label", whole_if_missing=True)
 
 
 def load_label_params(path: str | Path) -> LabelParams:
@@ -256,7 +242,8 @@ def _quality(rec: Recording, seg: _Segment, params: LabelParams, min_samples: in
 
 
 def _base_row(m: SessionManifest, rec_id: str, dev: DeviceSpec, rec: Recording, seg: _Segment,
-              files: dict[str, str], rel: str, params: LabelParams) -> dict[str, Any]:
+              files: dict[str, str], rel: str, params: LabelParams, keep_segment: bool = False,
+              ) -> dict[str, Any]:
     x = rec.acc[seg.start:seg.stop]
     conv = [convergence_index(x[:, i], params.convergence_window, params.convergence_threshold)
             for i in range(3)]
@@ -273,6 +260,7 @@ def _base_row(m: SessionManifest, rec_id: str, dev: DeviceSpec, rec: Recording, 
         "missing_samples": rec.diagnostics.missing_samples,
         "offset_x": None, "offset_y": None, "offset_z": None, "fit_condition": None,
         "_mean": x.mean(axis=0),
+        **({"_segment": x} if keep_segment else {}),
     }
 
 
@@ -301,7 +289,7 @@ def _reference_window(ref: Recording, taps: np.ndarray, params: LabelParams,
 
 
 def _label_rotated(out: SessionLabels, rec_id: str, recs: dict[str, Recording],
-                   rels: dict[str, str], params: LabelParams) -> None:
+                   rels: dict[str, str], params: LabelParams, keep_segments: bool) -> None:
     m = out.manifest
     ref_spec = m.reference
     assert ref_spec is not None
@@ -331,7 +319,7 @@ def _label_rotated(out: SessionLabels, rec_id: str, recs: dict[str, Recording],
         if bad is not None:
             out.rejections.append(Rejection(rec_id, dev.id, *bad))
             continue
-        row = _base_row(m, rec_id, dev, rec, seg, out.files, rels[dev.id], params)
+        row = _base_row(m, rec_id, dev, rec, seg, out.files, rels[dev.id], params, keep_segments)
         ref_mean = ref.acc[ref_seg.start:ref_seg.stop].mean(axis=0)
         N = np.eye(3) if dev.reference_to_sensor is None else dev.reference_to_sensor
         bias, u = rodrigues_label(row["_mean"], ref_mean, N, m.g_local)
@@ -343,7 +331,7 @@ def _label_rotated(out: SessionLabels, rec_id: str, recs: dict[str, Recording],
 
 
 def _label_alone(out: SessionLabels, rec_id: str, recs: dict[str, Recording],
-                 rels: dict[str, str], params: LabelParams) -> list[dict[str, Any]]:
+                 rels: dict[str, str], params: LabelParams, keep_segments: bool) -> list[dict[str, Any]]:
     """Rows (without label) of the DUTs of a recording with no reference."""
     m = out.manifest
     rows = []
@@ -358,7 +346,7 @@ def _label_alone(out: SessionLabels, rec_id: str, recs: dict[str, Recording],
             out.warnings.append(f"{rec_id}/{dev.id}: no taps; stationary part found by the static "
                                 f"detector at lines {int(rec.line[seg.start])}–"
                                 f"{int(rec.line[seg.stop - 1])}")
-        rows.append(_base_row(m, rec_id, dev, rec, seg, out.files, rels[dev.id], params))
+        rows.append(_base_row(m, rec_id, dev, rec, seg, out.files, rels[dev.id], params, keep_segments))
     return rows
 
 
@@ -386,7 +374,8 @@ def _label_multi_position(out: SessionLabels, rows: list[dict[str, Any]], params
             out.rows.append(r)
 
 
-def label_session(folder: str | Path, params: LabelParams = LabelParams()) -> SessionLabels:
+def label_session(folder: str | Path, params: LabelParams = LabelParams(), *,
+                  keep_segments: bool = False) -> SessionLabels:
     """Label every (recording, DUT) of one session folder.
 
     Parameters
@@ -395,6 +384,10 @@ def label_session(folder: str | Path, params: LabelParams = LabelParams()) -> Se
         Session folder (with ``session.yaml``) or the manifest itself.
     params
         Labelling parameters.
+    keep_segments
+        Also keep each row's stationary samples, (n, 3) m/s², under the private key
+        ``"_segment"`` (for analyses such as the convergence report; the label writer
+        ignores it).
 
     Returns
     -------
@@ -421,9 +414,9 @@ def label_session(folder: str | Path, params: LabelParams = LabelParams()) -> Se
             out.files[rel] = sha256_file(path)
             rels[dev_id] = rel
         if m.kind == "rotated":
-            _label_rotated(out, rec_spec.id, recs, rels, params)
+            _label_rotated(out, rec_spec.id, recs, rels, params, keep_segments)
             continue
-        rows = _label_alone(out, rec_spec.id, recs, rels, params)
+        rows = _label_alone(out, rec_spec.id, recs, rels, params, keep_segments)
         if m.kind == "gravity-aligned":
             for row in rows:
                 u = nearest_axis(row["_mean"])

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from ofbe_data.errors import ConfigError
+from ofbe_data.yamlio import YamlProblem, read_yaml
 
 
 def _convert(value: Any, tp: Any, source: str | Path, key: str) -> Any:
@@ -99,3 +100,39 @@ def from_plain(data: Any, cls: Any, source: str | Path, prefix: str = "") -> Any
         return cls(**kwargs)
     except TypeError as exc:
         raise ConfigError(source, prefix or "<document>", "all required keys", str(exc)) from None
+
+
+def read_section(path: str | Path, section: str, whole_if_missing: bool = False) -> dict[str, Any]:
+    """The plain mapping under ``section`` of a YAML file (e.g. params.yaml).
+
+    Parameters
+    ----------
+    path
+        The YAML file.
+    section
+        Top-level key.
+    whole_if_missing
+        Return the whole document when it has no such key (a file holding only that
+        section); otherwise an empty mapping.
+
+    Raises
+    ------
+    ConfigError
+        Unreadable file, invalid YAML (with its line), or a section that is not a mapping.
+    """
+    try:
+        data = read_yaml(path).data
+    except YamlProblem as exc:
+        raise ConfigError(f"{path}:{exc.line}" if exc.line else path, exc.field, exc.expected,
+                          exc.found) from None
+    except OSError as exc:
+        raise ConfigError(path, "<file>", "a readable YAML file", exc.strerror or str(exc)) from None
+    if isinstance(data, dict) and section in data:
+        data = data[section]
+    elif not whole_if_missing:
+        data = None
+    if data is None:
+        return {}
+    if not isinstance(data, dict):
+        raise ConfigError(path, section, f"a mapping of {section} parameters", type(data).__name__)
+    return data

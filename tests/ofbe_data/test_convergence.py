@@ -37,3 +37,26 @@ def test_white_noise_scaling():
     k_star = sigma * np.sqrt(2 / np.pi) / 5e-6
     assert 0.68 * k_star < k1 < 0.86 * k_star
     assert k1 / k2 == pytest.approx(2.0, rel=0.08)
+
+
+def test_axis_statistics_leave_out_unconverged() -> None:
+    from ofbe_data.convergence import axis_statistics
+
+    s = axis_statistics(np.array([4000, 5000, -1, 4500]))
+    assert (s.n, s.n_not_converged, s.mean, s.min, s.max) == (4, 1, 4500.0, 4000.0, 5000.0)
+    assert s.std == pytest.approx(500.0)
+    none = axis_statistics(np.array([-1, -1]))
+    assert none.n_not_converged == 2 and np.isnan(none.mean)
+
+
+def test_recommendation_rounds_up_and_rejects_nonsense() -> None:
+    from ofbe_data.convergence import axis_statistics, recommend_min_samples
+
+    s = axis_statistics(np.array([4401, 4463]))
+    assert recommend_min_samples(s) == 4500
+    assert recommend_min_samples(s, round_to=1) == 4432
+    assert recommend_min_samples(s, "mean+std") == 4500
+    with pytest.raises(ValueError, match="statistic: expected one of mean, mean"):
+        recommend_min_samples(s, "mode")
+    with pytest.raises(ValueError, match="no recording converged"):
+        recommend_min_samples(axis_statistics(np.array([-1])))
