@@ -7,14 +7,20 @@ at the first k where the mean of the last ``window`` values of d is below ``thre
 from __future__ import annotations
 
 import dataclasses
+import json
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
+
+from ofbe_data.errors import OfbeError
 
 PAPER_WINDOW = 40
 """Number of running-mean steps averaged (paper)."""
 PAPER_THRESHOLD = 5e-6
 """Threshold on the averaged step, m/s² (paper)."""
+REPORT_FORMAT = "ofbe-convergence/1"
+"""Format of ``reports/convergence/convergence.json`` (written by ``ofbe-convergence``)."""
 
 
 def running_mean(x: np.ndarray) -> np.ndarray:
@@ -152,3 +158,28 @@ def recommend_min_samples(stats: AxisConvergence, statistic: str = "mean", round
     if not np.isfinite(value):
         raise ValueError(f"no recording converged ({stats.n} analysed): nothing to recommend")
     return int(np.ceil(value / round_to) * round_to)
+
+
+def read_recommendation(path: str | Path) -> int:
+    """The recommended fewest samples per label from a ``convergence.json``.
+
+    Raises
+    ------
+    OfbeError
+        Missing or unreadable file, or no recommendation in it.
+    """
+    path = Path(path)
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise OfbeError(f"{path}: expected a convergence report (run ofbe-convergence), found no such file"
+                        ) from None
+    except (OSError, json.JSONDecodeError) as exc:
+        raise OfbeError(f"{path}: expected a convergence report in JSON, found {exc}") from None
+    if not isinstance(doc, dict):
+        doc = {}
+    value = doc.get("recommended_label_start")
+    if doc.get("format") != REPORT_FORMAT or not isinstance(value, int) or value < 2:
+        raise OfbeError(f"{path}: expected format {REPORT_FORMAT} with an integer recommended_label_start "
+                        f"≥ 2, found format {doc.get('format')!r}, recommended_label_start {value!r}")
+    return value

@@ -17,6 +17,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from ofbe_data.convergence import read_recommendation
 from ofbe_data.errors import OfbeError
 from ofbe_data.labels import LabelParams, SessionLabels, label_params_from, label_session, read_label_section
 from ofbe_data.labelstore import fit_campaign, write_campaign_fit, write_session
@@ -141,6 +142,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--params", help="YAML file with labelling parameters (its 'label:' section "
                                     "if it has one, e.g. params.yaml)")
     p.add_argument("--min-samples", type=int, help="override label.min_samples")
+    p.add_argument("--min-samples-from", metavar="REPORT",
+                   help="take label.min_samples from a convergence report (reports/convergence/"
+                        "convergence.json) unless --params or --min-samples set it")
     p.add_argument("--quiet", action="store_true", help="no progress bar, no summary")
     return p
 
@@ -154,6 +158,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     try:
         data = read_label_section(args.params) if args.params else {}
+        if args.min_samples_from and args.min_samples is None and "min_samples" not in data:
+            data = {**data, "min_samples": read_recommendation(args.min_samples_from)}
         if args.min_samples is not None:
             data = {**data, "min_samples": args.min_samples}
         params = label_params_from(data, args.params or "command line")

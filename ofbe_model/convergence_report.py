@@ -34,6 +34,7 @@ from ofbe_data import __version__
 from ofbe_data.allan import AllanResult, allan_deviation, combine, white_noise_level
 from ofbe_data.atomic import atomic_directory, write_bytes_atomic
 from ofbe_data.convergence import (
+    REPORT_FORMAT,
     STATISTICS,
     AxisConvergence,
     axis_statistics,
@@ -48,7 +49,6 @@ from ofbe_data.typedconfig import from_plain, read_section
 from ofbe_data.windows import load_segments
 from ofbe_model.figures import new_figure, save_png
 
-REPORT_FORMAT = "ofbe-convergence/1"
 AXES = ("x", "y", "z")
 PAPER_BAND = (4000, 5000)
 """The paper's range of convergence indices on x, samples."""
@@ -457,31 +457,6 @@ def write_report(analysis: Analysis, out_dir: Path, params: ConvergenceParams, l
         write_bytes_atomic(tmp / "convergence.md", report_markdown(doc).encode())
         write_bytes_atomic(tmp / "convergence.json", _json_bytes(doc))
     return doc
-
-
-def read_recommendation(path: str | Path) -> int:
-    """The recommended fewest samples per label from a ``convergence.json``.
-
-    Raises
-    ------
-    OfbeError
-        Missing or unreadable file, or no recommendation in it.
-    """
-    path = Path(path)
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise OfbeError(f"{path}: expected a convergence report (run ofbe-convergence), found no such file"
-                        ) from None
-    except (OSError, json.JSONDecodeError) as exc:
-        raise OfbeError(f"{path}: expected a convergence report in JSON, found {exc}") from None
-    if not isinstance(doc, dict):
-        doc = {}
-    value = doc.get("recommended_label_start")
-    if doc.get("format") != REPORT_FORMAT or not isinstance(value, int) or value < 2:
-        raise OfbeError(f"{path}: expected format {REPORT_FORMAT} with an integer recommended_label_start "
-                        f"≥ 2, found format {doc.get('format')!r}, recommended_label_start {value!r}")
-    return value
 
 
 def _parser() -> argparse.ArgumentParser:

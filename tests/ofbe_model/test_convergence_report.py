@@ -10,12 +10,13 @@ import matplotlib.image as mpimg
 import numpy as np
 import pytest
 
-from ofbe_data.convergence import convergence_index
+from ofbe_data.convergence import convergence_index, read_recommendation
+from ofbe_data.errors import OfbeError
 from ofbe_data.label_cli import expand_sessions
 from ofbe_data.labels import LabelParams, label_session
 from ofbe_data.simulator import load_config, simulate_campaign
 from ofbe_model import convergence_report as cr
-from ofbe_model.convergence_report import ConvergenceParams, analyse, read_recommendation, write_report
+from ofbe_model.convergence_report import ConvergenceParams, analyse, write_report
 
 FILES = ("convergence.json", "convergence.md", "convergence_histogram.png", "convergence_example.png",
          "convergence_indices.csv", "allan.csv")
@@ -90,14 +91,14 @@ def test_recommendation_rules(default_ga, tmp_path) -> None:
 
 
 def test_read_recommendation_errors(tmp_path) -> None:
-    with pytest.raises(cr.OfbeError, match="expected a convergence report .*found no such file"):
+    with pytest.raises(OfbeError, match="expected a convergence report .*found no such file"):
         read_recommendation(tmp_path / "none.json")
     bad = tmp_path / "bad.json"
     bad.write_text("[1, 2")
-    with pytest.raises(cr.OfbeError, match="bad.json: expected a convergence report in JSON"):
+    with pytest.raises(OfbeError, match="bad.json: expected a convergence report in JSON"):
         read_recommendation(bad)
     bad.write_text(json.dumps({"format": "other", "recommended_label_start": 4500}))
-    with pytest.raises(cr.OfbeError, match="found format 'other'"):
+    with pytest.raises(OfbeError, match="found format 'other'"):
         read_recommendation(bad)
 
 

@@ -29,8 +29,13 @@ def test_stage_labels_the_campaigns_of_params(tmp_path, monkeypatch):
 
 
 def test_repository_label_params_are_valid():
+    """The label length is the convergence report's unless params.yaml overrides it."""
     params = load_label_params(ROOT / "params.yaml")
-    assert params.min_samples == 4500 and params.margin_s == 1.0
+    assert params.margin_s == 1.0
+    doc = yaml.safe_load((ROOT / "params.yaml").read_text())
+    assert "min_samples" not in doc["label"]
+    stage = yaml.safe_load((ROOT / "dvc.yaml").read_text())["stages"]["label"]
+    assert doc["label_run"]["min_samples_from"] in stage["deps"]
 
 
 def _module_file(module: str) -> str | None:
@@ -42,15 +47,19 @@ def _module_file(module: str) -> str | None:
 
 
 def _imported_files(entry: str) -> set[str]:
-    """Every ofbe_data source file reachable by imports from ``entry``."""
+    """Every ofbe_data / ofbe_model source file reachable by imports from ``entry``."""
     todo, seen = [entry], set()
     while todo:
         rel = todo.pop()
         if rel in seen:
             continue
         seen.add(rel)
-        for node in ast.walk(ast.parse((ROOT / rel).read_text())):
-            if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("ofbe_data"):
+        tree = ast.parse((ROOT / rel).read_text())
+        # a package's lazy ``__getattr__`` (ofbe_data.load_dataset) imports only when used
+        tree.body = [n for n in tree.body if not (isinstance(n, ast.FunctionDef) and n.name == "__getattr__")]
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith(("ofbe_data",
+                                                                                            "ofbe_model")):
                 for name in [node.module, *(f"{node.module}.{a.name}" for a in node.names)]:
                     found = _module_file(name)
                     if found:
@@ -59,10 +68,58 @@ def _imported_files(entry: str) -> set[str]:
 
 
 @pytest.mark.parametrize("stage, entry", [("simulate", "pipelines/simulate.py"),
-                                          ("label", "pipelines/label.py")])
+                                          ("convergence", "pipelines/convergence.py"),
+                                          ("small_angle", "pipelines/small_angle.py"),
+                                          ("label", "pipelines/label.py"),
+                                          ("datasets", "pipelines/datasets.py")])
 def test_stages_depend_on_every_module_they_run(stage, entry):
     deps = yaml.safe_load((ROOT / "dvc.yaml").read_text())["stages"][stage]["deps"]
     assert entry in deps
     missing = sorted(f for f in _imported_files(entry)
                      if not any(f == d or f.startswith(d.rstrip("/") + "/") for d in deps))
     assert missing == []
+
+
+def test_label_stage_takes_min_samples_from_the_convergence_report(tmp_path, monkeypatch):
+    import json
+
+    from ofbe_data.convergence import REPORT_FORMAT
+    from ofbe_data.labelstore import read_provenance
+
+    campaigns = {"small-ga": {"profile": "tiny-gravity-aligned", "seed": 3}}
+    params = {"simulate": {"jobs": 1, "campaigns": campaigns},
+              "label": {"margin_s": 1.0},
+              "label_run": {"jobs": 1, "campaigns": ["small-ga"], "min_samples_from": "conv.json"}}
+    (tmp_path / "params.yaml").write_text(yaml.safe_dump(params))
+    (tmp_path / "conv.json").write_text(json.dumps({"format": REPORT_FORMAT, "recommended_label_start": 777}))
+    monkeypatch.chdir(tmp_path)
+    assert simulate.main() == 0
+    assert label.main() == 0
+    files = sorted((tmp_path / "processed" / "labels" / "small-ga").glob("*.parquet"))
+    assert files and all(read_provenance(f)["parameters"]["min_samples"] == 777 for f in files)
+    # an explicit label.min_samples wins over the report
+    params["label"]["min_samples"] = 900
+    (tmp_path / "params.yaml").write_text(yaml.safe_dump(params))
+    assert label.main() == 0
+    assert read_provenance(files[0])["parameters"]["min_samples"] == 900
+
+
+def test_datasets_stage_builds_each_campaign(tmp_path, monkeypatch):
+    from ofbe_data.datastore import verify_dataset
+    from ofbe_data.label_cli import expand_sessions, label_sessions
+    from ofbe_data.labels import LabelParams
+    from ofbe_data.simulator import load_config, simulate_campaign
+    from pipelines import datasets
+
+    simulate_campaign(load_config("gravity-aligned", {"sessions": 5, "stationary_s": [12.0, 12.0]}),
+                      tmp_path / "raw" / "ga", seed=4, jobs=1, progress=False)
+    label_sessions(expand_sessions([tmp_path / "raw" / "ga"]), LabelParams(min_samples=600),
+                   tmp_path / "processed" / "labels", progress=False)
+    params = {"dataset": {"window_length": 500, "stride": 500},
+              "dataset_run": {"jobs": 1, "campaigns": ["ga"]}}
+    (tmp_path / "params.yaml").write_text(yaml.safe_dump(params))
+    monkeypatch.chdir(tmp_path)
+    assert datasets.main() == 0
+    summary = verify_dataset(tmp_path / "processed" / "datasets" / "ga")
+    assert summary["n_recordings"] == 20 and summary["window_length"] == 500
+    assert sorted(summary["protocols"]) == ["grouped", "paper-gravity"]

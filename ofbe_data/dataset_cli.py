@@ -1,0 +1,118 @@
+"""``ofbe-dataset``: build a campaign's windowed dataset, verify one, or export it for sharing.
+
+Subcommands::
+
+    ofbe-dataset build processed/labels/<campaign> --raw raw/<campaign> [--out processed/datasets/<name>]
+    ofbe-dataset verify processed/datasets/<name>
+    ofbe-dataset export processed/datasets/<name> --out DIR [--title ... --licence ... --author ...]
+
+Exit status: 0 on success, 1 when the data are bad (a changed raw file, a checksum that does
+not match, a protocol that cannot be applied), 2 on a usage or parameter error. Every
+message is one line naming the file.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from ofbe_data.datasets import build_dataset, dataset_params_from
+from ofbe_data.datastore import export_dataset, verify_dataset
+from ofbe_data.errors import ConfigError, OfbeError
+from ofbe_data.fidelity import truth_dir_of
+from ofbe_data.typedconfig import read_section
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="ofbe-dataset",
+                                description="Windowed datasets with leakage-free folds, as HDF5 + Parquet "
+                                            "with a Frictionless data package, a card and checksums.")
+    sub = p.add_subparsers(dest="command", required=True)
+    b = sub.add_parser("build", help="cut a labelled campaign into windows and assign folds")
+    b.add_argument("labels", help="the campaign's label folder (processed/labels/<campaign>)")
+    b.add_argument("--raw", required=True, help="the raw campaign folder the labels were made from")
+    b.add_argument("--out", help="dataset folder (default: processed/datasets/<campaign>)")
+    b.add_argument("--name", help="dataset name (default: the campaign)")
+    b.add_argument("--params", help="YAML file whose 'dataset:' section sets windowing, folds and protocols")
+    b.add_argument("--window-length", type=int, help="override dataset.window_length (samples)")
+    b.add_argument("--stride", type=int, help="override dataset.stride (samples)")
+    b.add_argument("--truth", help="the simulator's truth folder (default: the raw campaign's own, when "
+                                   "present): the card then states the label fidelity")
+    b.add_argument("--jobs", type=int, default=1, help="worker processes reading raw files")
+    b.add_argument("--force", action="store_true", help="replace an existing dataset folder")
+    b.add_argument("--quiet", action="store_true", help="no progress bar, no summary")
+    v = sub.add_parser("verify", help="check a dataset's checksums, schema version and consistency")
+    v.add_argument("path")
+    e = sub.add_parser("export", help="write a verified, self-describing copy for sharing")
+    e.add_argument("path", help="dataset folder")
+    e.add_argument("--out", required=True, help="new folder")
+    e.add_argument("--title")
+    e.add_argument("--licence", help="SPDX licence id of the data, e.g. CC-BY-4.0")
+    e.add_argument("--author", action="append", help="author (repeat for several)")
+    e.add_argument("--version", help="dataset version")
+    e.add_argument("--force", action="store_true", help="replace an existing --out")
+    return p
+
+
+def _fail(message: str, code: int) -> int:
+    print(f"ofbe-dataset: error: {message}", file=sys.stderr)
+    return code
+
+
+def _build(args: argparse.Namespace) -> int:
+    try:
+        data = dict(read_section(args.params, "dataset")) if args.params else {}
+        if args.window_length is not None:
+            data["window_length"] = args.window_length
+        if args.stride is not None:
+            data["stride"] = args.stride
+        params = dataset_params_from(data, args.params or "command line")
+        if args.jobs < 1:
+            raise ConfigError("command line", "--jobs", "an integer ≥ 1", str(args.jobs))
+        labels, raw = Path(args.labels), Path(args.raw)
+        for path, what in ((labels, "label folder"), (raw, "raw campaign folder")):
+            if not path.is_dir():
+                return _fail(f"{path}: expected a {what}, found no such folder", 2)
+    except OfbeError as exc:
+        return _fail(str(exc), 2)
+    truth = Path(args.truth) if args.truth else truth_dir_of(raw)
+    if truth is not None and not truth.is_dir():
+        return _fail(f"{truth}: expected the simulator's truth folder, found no such folder", 2)
+    out = Path(args.out) if args.out else Path("processed/datasets") / (args.name or labels.name)
+    try:
+        result = build_dataset(labels, raw, out, params, name=args.name,
+                               truth_dir=truth,
+                               jobs=min(args.jobs, os.cpu_count() or 1), force=args.force,
+                               progress=not args.quiet)
+    except OfbeError as exc:
+        return _fail(str(exc), 1)
+    if not args.quiet:
+        print(f"ofbe-dataset: {result.n_windows} windows from {result.n_recordings} recordings "
+              f"({len(result.excluded)} too short), protocols {', '.join(result.protocols)} -> {result.path}",
+              file=sys.stderr)
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    if args.command == "build":
+        return _build(args)
+    try:
+        if args.command == "verify":
+            summary = verify_dataset(args.path)
+            print(f"ofbe-dataset: {args.path}: OK ({summary})")
+            return 0
+        dest = export_dataset(args.path, args.out, title=args.title, licence=args.licence,
+                              authors=tuple(args.author) if args.author else None, version=args.version,
+                              force=args.force)
+        print(f"ofbe-dataset: exported {args.path} -> {dest}", file=sys.stderr)
+        return 0
+    except OfbeError as exc:
+        return _fail(str(exc), 1)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,23 @@
+"""DVC stage ``small_angle``: the levelled-calibration gravity-leak report.
+
+Reads ``small_angle`` from params.yaml; all logic lives in :mod:`ofbe_model.small_angle_report`.
+"""
+
+from __future__ import annotations
+
+import sys
+
+import yaml
+
+from ofbe_model.small_angle_report import main as small_angle_main
+
+
+def main(params_file: str = "params.yaml") -> int:
+    with open(params_file, encoding="utf-8") as fh:
+        p = yaml.safe_load(fh)["small_angle"]
+    return small_angle_main(["--out", "reports/small_angle", "--range-deg", str(p["range_deg"]),
+                             "--step-deg", str(p["step_deg"]), "--limit-mg", str(p["limit_mg"])])
+
+
+if __name__ == "__main__":
+    sys.exit(main())
