@@ -1,0 +1,162 @@
+"""The one estimator interface, and the registry of estimators by name.
+
+Every bias estimator follows scikit-learn's conventions: parameters are keyword arguments
+of ``__init__`` stored unchanged under the same names, all work happens in :meth:`fit`, and
+learned values end in ``_``. A window is (T, 3) specific force in m/s², sensor frame; a
+batch is (N, T, 3). ``meta`` is a pandas DataFrame with one row per window carrying at least
+``device`` (str) and ``g_local`` (m/s²); dataset windows also carry ``fs_hz``,
+``power_cycle``, the session identity and so on (docs/datasets.md). Estimators must not read
+label columns (``bias_*``, ``offset_*``, ``gravity_*``, ``roll_deg``, ``pitch_deg``) from
+``meta`` in :meth:`predict`.
+"""
+
+from __future__ import annotations
+
+import inspect
+from typing import Any, ClassVar, TypeVar
+
+import numpy as np
+import pandas as pd
+
+from ofbe_data.errors import OfbeError
+
+#: Columns every ``meta`` frame must have.
+META_REQUIRED = ("device", "g_local")
+
+
+class EstimatorError(OfbeError):
+    """An estimator used wrongly: unknown name, predict before fit, bad shapes or meta."""
+
+
+class Estimator:
+    """Base class of every bias estimator.
+
+    Class attributes
+    ----------------
+    name
+        Registry name (``level-mean``, ``ls-trf``...).
+    needs_fit
+        Whether :meth:`fit` learns anything (physics-only estimators return ``self``).
+    """
+
+    name: ClassVar[str] = ""
+    needs_fit: ClassVar[bool] = False
+
+    def fit(self, windows: np.ndarray, labels: np.ndarray, meta: pd.DataFrame) -> Estimator:
+        """Learn from training windows.
+
+        Parameters
+        ----------
+        windows
+            (N, T, 3) m/s².
+        labels
+            (N, 3) apparent-bias labels, m/s².
+        meta
+            N rows (see the module docstring).
+
+        Returns
+        -------
+        self
+        """
+        check_inputs(windows, meta, labels)
+        return self
+
+    def predict(self, windows: np.ndarray, meta: pd.DataFrame) -> np.ndarray:
+        """Bias estimates, (N, 3) m/s²."""
+        raise NotImplementedError
+
+    def predict_std(self, windows: np.ndarray, meta: pd.DataFrame) -> np.ndarray:
+        """Posterior standard deviations, (N, 3) m/s², for estimators that have them.
+
+        Raises
+        ------
+        NotImplementedError
+            The estimator gives no uncertainty.
+        """
+        raise NotImplementedError(f"{self.name or type(self).__name__} gives no standard deviation")
+
+    @property
+    def has_std(self) -> bool:
+        """Whether :meth:`predict_std` is implemented."""
+        return type(self).predict_std is not Estimator.predict_std
+
+    def get_params(self) -> dict[str, Any]:
+        """The ``__init__`` parameters and their current values (scikit-learn style)."""
+        sig = inspect.signature(type(self).__init__)
+        skip = (inspect.Parameter.VAR_POSITIONAL, inspect.Parameter.VAR_KEYWORD)
+        return {p: getattr(self, p) for p, spec in sig.parameters.items()
+                if p != "self" and spec.kind not in skip}
+
+    def __repr__(self) -> str:
+        args = ", ".join(f"{k}={v!r}" for k, v in self.get_params().items())
+        return f"{type(self).__name__}({args})"
+
+
+def check_inputs(windows: np.ndarray, meta: pd.DataFrame, labels: np.ndarray | None = None) -> None:
+    """Check shapes and required meta columns.
+
+    Raises
+    ------
+    EstimatorError
+        Windows not (N, T, 3), meta or labels of another length, a missing meta column.
+    """
+    w = np.asarray(windows)
+    if w.ndim != 3 or w.shape[2] != 3:
+        raise EstimatorError(f"windows: expected an array of shape (N, T, 3), found shape {w.shape}")
+    if len(meta) != w.shape[0]:
+        raise EstimatorError(f"meta: expected {w.shape[0]} rows (one per window), found {len(meta)}")
+    missing = [c for c in META_REQUIRED if c not in meta.columns]
+    if missing:
+        raise EstimatorError(f"meta: expected columns {', '.join(META_REQUIRED)}, "
+                             f"found no {', '.join(missing)}")
+    if labels is not None and np.asarray(labels).shape != (w.shape[0], 3):
+        raise EstimatorError(f"labels: expected shape ({w.shape[0]}, 3), found {np.asarray(labels).shape}")
+
+
+E = TypeVar("E", bound=type[Estimator])
+_REGISTRY: dict[str, type[Estimator]] = {}
+
+
+def register(cls: E) -> E:
+    """Class decorator: make an estimator available by its ``name``."""
+    if not cls.name:
+        raise EstimatorError(f"{cls.__name__}: expected a non-empty class attribute 'name'")
+    _REGISTRY[cls.name] = cls
+    return cls
+
+
+def estimator_names() -> tuple[str, ...]:
+    """Registered names, sorted."""
+    _load_builtin()
+    return tuple(sorted(_REGISTRY))
+
+
+def make_estimator(name: str, **params: Any) -> Estimator:
+    """A new estimator by registry name.
+
+    Raises
+    ------
+    EstimatorError
+        Unknown name (the message lists the known ones) or unknown parameters.
+    """
+    _load_builtin()
+    cls = _REGISTRY.get(name)
+    if cls is None:
+        raise EstimatorError(f"estimator: expected one of {', '.join(sorted(_REGISTRY))}, found {name!r}")
+    try:
+        return cls(**params)
+    except TypeError as exc:
+        raise EstimatorError(f"estimator {name}: {exc}") from None
+
+
+def _load_builtin() -> None:
+    """Import the modules that register the built-in estimators (lazily: OFBENet needs
+    TensorFlow, which is heavy)."""
+    import importlib
+
+    for module in ("ofbe_model.estimators", "ofbe_model.ofbenet"):
+        try:
+            importlib.import_module(module)
+        except ModuleNotFoundError as exc:  # a module not written yet
+            if exc.name != module:
+                raise
