@@ -1,0 +1,221 @@
+"""``ofbe-benchmark``: every estimator on every fold of a protocol, and the report.
+
+For each benchmark dataset (the gravity-aligned set pooled, each rotated device on its own;
+:mod:`ofbe_model.evaluation`) and each fold of the protocol, every estimator is fitted on
+the fold's training windows and predicts the fold's test signals (window 0 of each test
+recording). The predictions table (one row per method and test signal) feeds
+:mod:`ofbe_model.benchmark_report`: ``benchmark.json``, the paper's Table 3 as
+``benchmark.md``, per-signal errors, paired t-tests, the oracle ratio and the figures.
+
+OFBENet is either loaded per fold from ``ofbe-train``'s models (``--models``), or trained
+here. The oracle reads the simulator's truth files (``--truth``) and nothing else does.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from tqdm import tqdm
+
+from ofbe_data.datastore import load_dataset
+from ofbe_data.errors import ConfigError, OfbeError
+from ofbe_data.typedconfig import from_plain, read_section
+from ofbe_model.base import Estimator, EstimatorError, make_estimator
+from ofbe_model.evaluation import Split, protocol_splits
+
+#: Meta columns an estimator never sees at prediction time (they are the labels).
+LABEL_COLUMNS = ("bias_x", "bias_y", "bias_z", "offset_x", "offset_y", "offset_z", "gravity_x", "gravity_y",
+                 "gravity_z", "roll_deg", "pitch_deg")
+
+DEFAULT_METHODS = ("level-mean", "ls-trf", "won2009", "prior-mean", "gravity-prior", "ofbenet", "oracle")
+
+
+@dataclass(frozen=True)
+class BenchmarkParams:
+    """``benchmark:`` in params.yaml.
+
+    Attributes
+    ----------
+    methods
+        Estimators run, by registry name.
+    baselines
+        Methods every other method is compared with (improvement %, t-tests).
+    estimator_params
+        Per method, keyword arguments of its constructor.
+    """
+
+    methods: tuple[str, ...] = DEFAULT_METHODS
+    baselines: tuple[str, ...] = ("ls-trf", "won2009")
+    estimator_params: dict[str, dict[str, Any]] = field(default_factory=dict)
+
+
+def benchmark_params_from(data: dict[str, Any] | None, source: str) -> BenchmarkParams:
+    """:class:`BenchmarkParams` from a plain mapping (``estimator_params`` values are kept as given)."""
+    plain = dict(data or {})
+    est = plain.pop("estimator_params", None) or {}
+    if not isinstance(est, dict) or not all(isinstance(v, dict) for v in est.values()):
+        raise ConfigError(source, "benchmark.estimator_params", "a mapping of method → mapping of parameters",
+                          repr(est))
+    params: BenchmarkParams = from_plain(plain, BenchmarkParams, source, "benchmark")
+    return BenchmarkParams(params.methods, params.baselines, {str(k): dict(v) for k, v in est.items()})
+
+
+def model_path(models_dir: Path, dataset: str, protocol: str, fold: int) -> Path:
+    """Where ``ofbe-train`` saves the OFBENet of one benchmark dataset, protocol and fold."""
+    return models_dir / dataset.replace("/", "__") / protocol / f"fold-{fold}.keras"
+
+
+def _estimator(method: str, split: Split, protocol: str, params: BenchmarkParams, models_dir: Path | None,
+               truth_dir: Path | None) -> tuple[Estimator, bool]:
+    """The estimator of one method for one fold, and whether it is already fitted (a saved model)."""
+    kwargs = dict(params.estimator_params.get(method, {}))
+    if method == "oracle":
+        if truth_dir is None:
+            raise EstimatorError("oracle: expected --truth (the simulator's truth folder), found none")
+        kwargs["truth_dir"] = str(truth_dir)
+    if method == "ofbenet" and models_dir is not None:
+        from ofbe_model.ofbenet import OFBENet
+
+        return OFBENet.load(model_path(models_dir, split.dataset, protocol, split.fold)), True
+    return make_estimator(method, **kwargs), False
+
+
+def run_protocol(dataset: str | Path, protocol: str, params: BenchmarkParams | None = None, *,
+                 models_dir: str | Path | None = None, truth_dir: str | Path | None = None,
+                 progress: bool = True) -> tuple[pd.DataFrame, dict[str, float]]:
+    """Predict every test signal of every fold with every method.
+
+    Parameters
+    ----------
+    dataset
+        A dataset folder (``processed/datasets/<campaign>``).
+    protocol
+        One of the dataset's protocols.
+    params
+        Methods, baselines, estimator parameters.
+    models_dir
+        ``ofbe-train``'s output folder: OFBENet is loaded from it (trained here when None).
+    truth_dir
+        The simulator's truth folder, for the oracle.
+    progress
+        Show a progress bar.
+
+    Returns
+    -------
+    predictions
+        One row per (method, test signal): the columns of
+        :func:`ofbe_model.benchmark_report.summarise`'s input.
+    seconds
+        Fit + predict time per method, s (summed over folds).
+    """
+    params = params or BenchmarkParams()
+    ds = load_dataset(dataset)
+    meta = ds.meta
+    kind = str(ds.info["kind"])
+    blind = meta.drop(columns=[c for c in LABEL_COLUMNS if c in meta.columns])
+    splits = list(protocol_splits(meta, kind, protocol))
+    models = Path(models_dir) if models_dir else None
+    truth = Path(truth_dir) if truth_dir else None
+    rows = []
+    seconds = dict.fromkeys(params.methods, 0.0)
+    bar = tqdm(total=len(splits) * len(params.methods), desc=f"benchmark {protocol}", unit="fit",
+               file=sys.stderr, disable=not progress)
+    for split in splits:
+        y_test = ds.y[split.test]
+        for method in params.methods:
+            t0 = time.perf_counter()
+            est, fitted = _estimator(method, split, protocol, params, models, truth)
+            if est.needs_fit and not fitted:
+                est.fit(ds.X[split.train], ds.y[split.train], blind.iloc[split.train].reset_index(drop=True))
+            test_meta = blind.iloc[split.test].reset_index(drop=True)
+            yhat = np.asarray(est.predict(ds.X[split.test], test_meta), dtype=np.float64)
+            std = (np.asarray(est.predict_std(ds.X[split.test], test_meta), dtype=np.float64) if est.has_std
+                   else np.full_like(yhat, np.nan))
+            seconds[method] += time.perf_counter() - t0
+            frame = pd.DataFrame({
+                "dataset": split.dataset, "devices": ",".join(split.devices), "protocol": protocol,
+                "method": method, "fold": split.fold, "window_id": meta["window_id"].to_numpy()[split.test],
+                "device": meta["device"].to_numpy()[split.test],
+                "y_x": y_test[:, 0], "y_y": y_test[:, 1], "y_z": y_test[:, 2],
+                "yhat_x": yhat[:, 0], "yhat_y": yhat[:, 1], "yhat_z": yhat[:, 2],
+                "std_x": std[:, 0], "std_y": std[:, 1], "std_z": std[:, 2]})
+            rows.append(frame)
+            bar.update()
+    bar.close()
+    return pd.concat(rows, ignore_index=True), seconds
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="ofbe-benchmark",
+        description="Run every estimator on every fold of a protocol and write benchmark.json, benchmark.md "
+                    "(the paper's Table 3), per-signal errors, t-tests and figures.")
+    p.add_argument("datasets", nargs="+", help="dataset folders (processed/datasets/<campaign>)")
+    p.add_argument("--protocol", required=True, help="paper-gravity, paper-rotated or grouped")
+    p.add_argument("--out", help="report folder (default: reports/benchmark/<protocol>)")
+    p.add_argument("--params", help="YAML file whose 'benchmark:' section sets methods, baselines and "
+                                    "estimator parameters")
+    p.add_argument("--methods", nargs="+", help="override benchmark.methods")
+    p.add_argument("--models", help="ofbe-train's output folder (OFBENet is trained here when not given)")
+    p.add_argument("--truth", action="append", default=[],
+                   help="the simulator's truth folder of a dataset's campaign, for the oracle (repeat per "
+                        "dataset, in the same order)")
+    p.add_argument("--quiet", action="store_true")
+    return p
+
+
+def _fail(message: str, code: int) -> int:
+    print(f"ofbe-benchmark: error: {message}", file=sys.stderr)
+    return code
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    from ofbe_model.benchmark_report import summarise, write_report
+
+    args = _parser().parse_args(argv)
+    try:
+        data = dict(read_section(args.params, "benchmark")) if args.params else {}
+        if args.methods:
+            data["methods"] = list(args.methods)
+        params = benchmark_params_from(data, args.params or "command line")
+        if args.truth and len(args.truth) != len(args.datasets):
+            raise ConfigError("command line", "--truth", f"one per dataset ({len(args.datasets)})",
+                              str(len(args.truth)))
+    except OfbeError as exc:
+        return _fail(str(exc), 2)
+    out = Path(args.out) if args.out else Path("reports/benchmark") / args.protocol
+    frames = []
+    timing: dict[str, float] = {}
+    try:
+        for i, ds in enumerate(args.datasets):
+            truth = args.truth[i] if args.truth else None
+            pred, seconds = run_protocol(ds, args.protocol, params, models_dir=args.models, truth_dir=truth,
+                                         progress=not args.quiet)
+            frames.append(pred)
+            for k, v in seconds.items():
+                timing[k] = timing.get(k, 0.0) + v
+        pred = pd.concat(frames, ignore_index=True)
+        summary = summarise(pred, baselines=params.baselines)
+        write_report(out, pred, summary, title=f"Benchmark, protocol {args.protocol}")
+    except OfbeError as exc:
+        return _fail(str(exc), 1)
+    if not args.quiet:
+        for name, info in summary["datasets"].items():
+            best = min(info["methods"].items(), key=lambda kv: kv[1]["rmse_mean"])
+            print(f"ofbe-benchmark: {name}: best {best[0]} RMSE {best[1]['rmse_mean']:.4g} m/s²",
+                  file=sys.stderr)
+        print("ofbe-benchmark: seconds per method: "
+              + ", ".join(f"{k} {v:.1f}" for k, v in timing.items()) + f" -> {out}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
