@@ -155,8 +155,9 @@ def _rotated_settings(cfg: SimConfig, rng: np.random.Generator) -> list[list[Set
             sgn = 1 if shift % 2 else -1
             roll = float(np.clip(step * (np.round(roll0 / step) + sgn * (shift // 2) * roll_axis),
                                  *t.roll_deg))
-            pitch = float(np.clip(step * (np.round(pitch0 / step)
-                                          + sgn * (shift // 2) * (pitch_axis and not roll_axis)),
+            # pitch moves for pitch-only settings, and for combined ones whose pitch rounds to 0
+            move_pitch = pitch_axis and (not roll_axis or np.round(pitch0 / step) == 0)
+            pitch = float(np.clip(step * (np.round(pitch0 / step) + sgn * (shift // 2) * move_pitch),
                                   *t.pitch_deg))
             roll = 180.0 if roll == -180.0 else roll + 0.0  # one name per orientation
             pitch += 0.0

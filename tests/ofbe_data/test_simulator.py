@@ -340,3 +340,16 @@ def test_profile_cycle_is_an_error(tmp_path):
     (tmp_path / "b.yaml").write_text("profile: a.yaml\n")
     with pytest.raises(ConfigError, match="no cycle of base profiles"):
         load_config(tmp_path / "a.yaml")
+
+
+@pytest.mark.parametrize("sessions", [10, 16, 29])
+def test_rotated_settings_are_distinct_for_any_seed(sessions):
+    """A combined tilt whose pitch rounds to zero used to exhaust its shifts and fail
+    (about one seed in five)."""
+    from ofbe_data.simulator.campaign import _rotated_settings
+
+    cfg = load_config("rotated", {"sessions": sessions})
+    for seed in range(60):
+        flat = [s for session in _rotated_settings(cfg, np.random.default_rng(seed)) for s in session]
+        settings = {(s.nominal_roll_deg, s.nominal_pitch_deg) for s in flat}
+        assert len(settings) == len(flat) == 3 * sessions, seed
