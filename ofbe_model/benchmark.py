@@ -35,7 +35,14 @@ from ofbe_model.evaluation import Split, protocol_splits
 LABEL_COLUMNS = ("bias_x", "bias_y", "bias_z", "offset_x", "offset_y", "offset_z", "gravity_x", "gravity_y",
                  "gravity_z", "roll_deg", "pitch_deg")
 
-DEFAULT_METHODS = ("level-mean", "ls-trf", "won2009", "prior-mean", "gravity-prior", "ofbenet", "oracle")
+DEFAULT_METHODS = ("level-mean", "ls-trf", "ls-trf-as-written", "ls-trf-bounded", "won2009", "prior-mean",
+                   "gravity-prior", "gravity-prior-direction", "ofbenet", "oracle")
+DEFAULT_VARIANTS: dict[str, dict[str, Any]] = {
+    "ls-trf-as-written": {"estimator": "ls-trf", "variant": "as-written"},
+    "ls-trf-bounded": {"estimator": "ls-trf", "variant": "bounded"},
+    "gravity-prior-direction": {"estimator": "gravity-prior", "direction_model": True},
+}
+"""Variants the default benchmark runs besides the registered defaults."""
 
 
 @dataclass(frozen=True)
@@ -45,16 +52,18 @@ class BenchmarkParams:
     Attributes
     ----------
     methods
-        Estimators run, by registry name.
+        Methods run: registry names, or labels of variants defined in ``estimator_params``.
     baselines
         Methods every other method is compared with (improvement %, t-tests).
     estimator_params
-        Per method, keyword arguments of its constructor.
+        Per method, keyword arguments of its constructor; the key ``estimator`` names the
+        registered estimator of a variant (e.g. ``ls-trf-as-written: {estimator: ls-trf,
+        variant: as-written}``).
     """
 
     methods: tuple[str, ...] = DEFAULT_METHODS
     baselines: tuple[str, ...] = ("ls-trf", "won2009")
-    estimator_params: dict[str, dict[str, Any]] = field(default_factory=dict)
+    estimator_params: dict[str, dict[str, Any]] = field(default_factory=lambda: dict(DEFAULT_VARIANTS))
 
 
 def benchmark_params_from(data: dict[str, Any] | None, source: str) -> BenchmarkParams:
@@ -65,7 +74,8 @@ def benchmark_params_from(data: dict[str, Any] | None, source: str) -> Benchmark
         raise ConfigError(source, "benchmark.estimator_params", "a mapping of method → mapping of parameters",
                           repr(est))
     params: BenchmarkParams = from_plain(plain, BenchmarkParams, source, "benchmark")
-    return BenchmarkParams(params.methods, params.baselines, {str(k): dict(v) for k, v in est.items()})
+    merged = {**DEFAULT_VARIANTS, **{str(k): dict(v) for k, v in est.items()}}
+    return BenchmarkParams(params.methods, params.baselines, merged)
 
 
 def model_path(models_dir: Path, dataset: str, protocol: str, fold: int) -> Path:
@@ -77,15 +87,16 @@ def _estimator(method: str, split: Split, protocol: str, params: BenchmarkParams
                truth_dir: Path | None) -> tuple[Estimator, bool]:
     """The estimator of one method for one fold, and whether it is already fitted (a saved model)."""
     kwargs = dict(params.estimator_params.get(method, {}))
-    if method == "oracle":
+    name = str(kwargs.pop("estimator", method))
+    if name == "oracle":
         if truth_dir is None:
             raise EstimatorError("oracle: expected --truth (the simulator's truth folder), found none")
         kwargs["truth_dir"] = str(truth_dir)
-    if method == "ofbenet" and models_dir is not None:
+    if name == "ofbenet" and models_dir is not None:
         from ofbe_model.ofbenet import OFBENet
 
         return OFBENet.load(model_path(models_dir, split.dataset, protocol, split.fold)), True
-    return make_estimator(method, **kwargs), False
+    return make_estimator(name, **kwargs), False
 
 
 def run_protocol(dataset: str | Path, protocol: str, params: BenchmarkParams | None = None, *,

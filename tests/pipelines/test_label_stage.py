@@ -71,7 +71,9 @@ def _imported_files(entry: str) -> set[str]:
                                           ("convergence", "pipelines/convergence.py"),
                                           ("small_angle", "pipelines/small_angle.py"),
                                           ("label", "pipelines/label.py"),
-                                          ("datasets", "pipelines/datasets.py")])
+                                          ("datasets", "pipelines/datasets.py"),
+                                          ("train", "pipelines/train.py"),
+                                          ("benchmark", "pipelines/benchmark.py")])
 def test_stages_depend_on_every_module_they_run(stage, entry):
     deps = yaml.safe_load((ROOT / "dvc.yaml").read_text())["stages"][stage]["deps"]
     assert entry in deps

@@ -1,0 +1,850 @@
+"""OFBENet: the paper's CNN bias estimator (methods.md §OFBENet, paper §3.3–3.4).
+
+Architecture (fixed by the paper)::
+
+    Input (T, 3) m/s²
+    → input scaling                         (inside the model: :class:`Standardise`)
+    → 3 × [Conv1D(kernel 5; 8, 32, 64 filters) → BatchNormalization
+           → LeakyReLU(negative_slope=0.1) → AveragePooling1D(pool_size)]
+    → GlobalAveragePooling1D → Dense(dense_units) → Dropout(dropout) → Dense(3)
+    → target de-scaling                     (inside the model: :class:`Destandardise`)
+    → (3,) m/s²
+
+trained with MSE, Adam (lr 0.01), batch 8, ReduceLROnPlateau(factor 0.2, patience 15) and
+EarlyStopping(patience 5, best weights restored). What the paper leaves open is a field of
+:class:`OFBENetParams` with a documented default.
+
+Both scalings live *inside* the Keras model as small registered layers whose constants are
+stored in the layer config, so a saved ``.keras`` file maps raw m/s² windows to m/s² biases
+on its own and loads with ``keras.saving.load_model(path, safe_mode=True)``: no Lambda
+layers, no pickled Python, no side files to keep in step.
+
+Determinism: :meth:`OFBENet.fit` calls :func:`keras.utils.set_random_seed` (Python, NumPy
+and TensorFlow seeds) and, without XLA, :func:`tf.config.experimental.enable_op_determinism`.
+Both are process-wide: after such a fit every TensorFlow op in the process runs in
+deterministic mode (some ops get slower, a few without a deterministic kernel raise). Keras
+turns XLA off whenever op determinism is on, so ``jit_compile=True`` fits leave it off and
+rely on XLA's CPU code being deterministic by itself (it is in the tests); a
+``jit_compile=True`` fit in a process where an earlier fit already enabled op determinism
+runs without XLA (Keras warns). On CPU, two fits of the same data with the same parameters
+give bit-identical weights either way; the two settings do not give the same weights as
+each other.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+import tempfile
+import time
+import warnings
+import zipfile
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, ClassVar
+
+import keras
+import numpy as np
+import pandas as pd
+import tensorflow as tf
+
+from ofbe_data.errors import ConfigError
+from ofbe_model.base import Estimator, EstimatorError, check_inputs, register
+
+#: Filters of the three convolution blocks (paper).
+FILTERS: tuple[int, int, int] = (8, 32, 64)
+#: Kernel size of every Conv1D (paper).
+KERNEL_SIZE = 5
+#: Negative slope of the LeakyReLU activations (paper's α).
+LEAKY_SLOPE = 0.1
+#: Windows per batch in prediction and validation (does not affect training).
+EVAL_BATCH = 64
+#: Member of the ``.keras`` archive holding the estimator's parameters and training record.
+SIDECAR_NAME = "ofbe_ofbenet.json"
+#: ``format`` of that member.
+SIDECAR_FORMAT = "ofbe-ofbenet/1"
+
+INPUT_SCALINGS = ("per-axis-standardise", "global-standardise", "none")
+TARGET_SCALINGS = ("standardise", "none")
+DENSE_ACTIVATIONS = ("relu", "linear")
+
+_STD_FLOOR = 1e-12  # a (near-)constant channel is left unscaled rather than divided by ~0
+_KERAS_FILES = ("config.json", "metadata.json", "model.weights.h5")
+_REFUSED_CLASSES = frozenset({"Lambda", "__lambda__", "TFSMLayer", "TorchModuleWrapper", "JaxLayer",
+                              "FlaxLayer"})
+
+
+# ---------------------------------------------------------------------------------------------
+# Parameters
+
+
+@dataclass(frozen=True)
+class OFBENetParams:
+    """The choices the paper leaves open, with their defaults.
+
+    Attributes
+    ----------
+    pool_size
+        AveragePooling1D pool size (and stride) after each block. 4 keeps the time axis of a
+        3000-sample window at 3000 → 749 → 186 → 45 samples before the global average.
+    dense_units
+        Width of the hidden Dense layer.
+    dense_activation
+        Activation of the hidden Dense layer: ``"relu"`` (default) or ``"linear"``.
+    dropout
+        Dropout rate after the hidden Dense layer, in [0, 1).
+    input_scaling
+        ``"per-axis-standardise"`` (default): subtract each axis' mean and divide by its
+        standard deviation, both over all samples of the training windows (the validation
+        windows excluded), so the gravity axis (~9.8 m/s²) and the level axes (~0) enter
+        the first convolution on the same scale. ``"global-standardise"``: one mean and one
+        standard deviation over all axes. ``"none"``: raw m/s². A (near-)constant axis is
+        centred but not divided.
+    target_scaling
+        ``"standardise"`` (default): the network is trained on per-axis standardised labels
+        (mean and standard deviation of the training labels), so the loss is dimensionless
+        and the three axes weigh equally; the model's last layer maps back to m/s².
+        ``"none"``: trained on labels in m/s², loss in (m/s²)².
+    max_epochs
+        Upper limit of training epochs; early stopping usually ends training well before
+        (after 7–21 epochs on the simulated campaigns). The default, 100, bounds one fold of
+        ~990 windows of 3000 × 3 at 1.2–1.7 min on two CPU cores, measured running all 100
+        epochs (~0.8–0.9 s per epoch); an early-stopped fold takes ~15 s
+        (benchmarks/ofbenet_speed.py).
+    validation_split
+        Fraction of the training bias instances (``device`` × ``power_cycle`` groups, dealt
+        per device) held out for validation, early stopping and the learning-rate schedule.
+        Splitting by group keeps windows that share a bias out of both sides. 0 trains on
+        everything and monitors the training loss instead.
+    learning_rate
+        Adam's initial learning rate (paper: 0.01).
+    batch_size
+        Training batch size (paper: 8).
+    lr_factor, lr_patience
+        ReduceLROnPlateau factor and patience in epochs (paper: 0.2, 15). With the paper's
+        early-stopping patience of 5 the learning rate is never reduced; the callback is kept
+        to follow the paper.
+    es_patience
+        EarlyStopping patience in epochs (paper: 5); the best epoch's weights are restored.
+    seed
+        Seed of the validation split, weight initialisation, shuffling and dropout.
+    jit_compile
+        Compile the training step with XLA. Off by default: on a 2-core CPU an XLA epoch is
+        15–30 % shorter but each fit first spends 2–4 s compiling, so an early-stopped fold
+        takes about as long either way (benchmarks/ofbenet_speed.py); and without XLA the
+        determinism rests on TensorFlow's op determinism rather than on XLA's code
+        generation. With XLA, op determinism is not enabled (Keras would turn XLA off): see
+        the module docstring. Both settings are deterministic on CPU but give different
+        weights.
+    """
+
+    pool_size: int = 4
+    dense_units: int = 64
+    dense_activation: str = "relu"
+    dropout: float = 0.2
+    input_scaling: str = "per-axis-standardise"
+    target_scaling: str = "standardise"
+    max_epochs: int = 100
+    validation_split: float = 0.2
+    learning_rate: float = 0.01
+    batch_size: int = 8
+    lr_factor: float = 0.2
+    lr_patience: int = 15
+    es_patience: int = 5
+    seed: int = 0
+    jit_compile: bool = False
+
+    def __post_init__(self) -> None:
+        src = "OFBENetParams"
+        ints = {"pool_size": 1, "dense_units": 1, "max_epochs": 1, "batch_size": 1, "lr_patience": 0,
+                "es_patience": 0, "seed": 0}
+        for key, low in ints.items():
+            value = getattr(self, key)
+            if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < low:
+                raise ConfigError(src, key, f"an integer >= {low}", repr(value))
+            object.__setattr__(self, key, int(value))
+        # (name, lower, lower inclusive, upper, upper inclusive)
+        ranges = {"dropout": (0.0, True, 1.0, False), "validation_split": (0.0, True, 1.0, False),
+                  "learning_rate": (0.0, False, math.inf, False), "lr_factor": (0.0, False, 1.0, False)}
+        for key, (lo, lo_in, hi, hi_in) in ranges.items():
+            value = getattr(self, key)
+            ok = (not isinstance(value, bool) and isinstance(value, int | float | np.integer | np.floating)
+                  and math.isfinite(value) and (value >= lo if lo_in else value > lo)
+                  and (value <= hi if hi_in else value < hi))
+            if not ok:
+                interval = f"{'[' if lo_in else '('}{lo:g}, {hi:g}{']' if hi_in else ')'}"
+                raise ConfigError(src, key, f"a number in {interval}", repr(value))
+            object.__setattr__(self, key, float(value))
+        for key, allowed in (("input_scaling", INPUT_SCALINGS), ("target_scaling", TARGET_SCALINGS),
+                             ("dense_activation", DENSE_ACTIVATIONS)):
+            if getattr(self, key) not in allowed:
+                raise ConfigError(src, key, f"one of {', '.join(allowed)}", repr(getattr(self, key)))
+        if not isinstance(self.jit_compile, bool | np.bool_):
+            raise ConfigError(src, "jit_compile", "true or false", repr(self.jit_compile))
+        object.__setattr__(self, "jit_compile", bool(self.jit_compile))
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain JSON-ready copy."""
+        return dataclasses.asdict(self)
+
+
+_PARAM_NAMES = tuple(f.name for f in dataclasses.fields(OFBENetParams))
+
+
+# ---------------------------------------------------------------------------------------------
+# Scaling layers
+
+
+def _constants(values: Sequence[float], name: str, positive: bool) -> tuple[float, ...]:
+    try:
+        out = tuple(float(v) for v in np.asarray(values, dtype=np.float64).reshape(-1))
+    except (TypeError, ValueError) as exc:
+        raise EstimatorError(f"{name}: expected a sequence of numbers, found {values!r}") from exc
+    if not out or not all(math.isfinite(v) and (v > 0 if positive else True) for v in out):
+        what = "positive finite numbers" if positive else "finite numbers"
+        raise EstimatorError(f"{name}: expected a non-empty sequence of {what}, found {list(out)}")
+    return out
+
+
+@keras.saving.register_keras_serializable(package="ofbe")
+class Standardise(keras.layers.Layer):
+    """``z = (x − mean) / std`` per channel, with constants stored in the layer config.
+
+    Parameters
+    ----------
+    mean, std
+        One value per channel (last axis), in the input's units (m/s² for windows); ``std``
+        positive.
+    **kwargs
+        Passed to :class:`keras.layers.Layer` (``name``...).
+    """
+
+    def __init__(self, mean: Sequence[float], std: Sequence[float], **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self.mean = _constants(mean, "Standardise.mean", positive=False)
+        self.std = _constants(std, "Standardise.std", positive=True)
+        if len(self.mean) != len(self.std):
+            raise EstimatorError(f"Standardise: expected mean and std of equal length, found "
+                                 f"{len(self.mean)} and {len(self.std)}")
+
+    def call(self, inputs: Any) -> Any:
+        mean = keras.ops.convert_to_tensor(np.asarray(self.mean, dtype=np.float32), dtype=inputs.dtype)
+        std = keras.ops.convert_to_tensor(np.asarray(self.std, dtype=np.float32), dtype=inputs.dtype)
+        return (inputs - mean) / std
+
+    def compute_output_shape(self, input_shape: tuple[int | None, ...]) -> tuple[int | None, ...]:
+        return input_shape
+
+    def get_config(self) -> dict[str, Any]:
+        return {**super().get_config(), "mean": list(self.mean), "std": list(self.std)}
+
+
+@keras.saving.register_keras_serializable(package="ofbe")
+class Destandardise(keras.layers.Layer):
+    """``y = z · std + mean`` per channel: the inverse of :class:`Standardise`.
+
+    Parameters
+    ----------
+    mean, std
+        One value per channel, in the output's units (m/s² for biases); ``std`` positive.
+    **kwargs
+        Passed to :class:`keras.layers.Layer`.
+    """
+
+    def __init__(self, mean: Sequence[float], std: Sequence[float], **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self.mean = _constants(mean, "Destandardise.mean", positive=False)
+        self.std = _constants(std, "Destandardise.std", positive=True)
+        if len(self.mean) != len(self.std):
+            raise EstimatorError(f"Destandardise: expected mean and std of equal length, found "
+                                 f"{len(self.mean)} and {len(self.std)}")
+
+    def call(self, inputs: Any) -> Any:
+        mean = keras.ops.convert_to_tensor(np.asarray(self.mean, dtype=np.float32), dtype=inputs.dtype)
+        std = keras.ops.convert_to_tensor(np.asarray(self.std, dtype=np.float32), dtype=inputs.dtype)
+        return inputs * std + mean
+
+    def compute_output_shape(self, input_shape: tuple[int | None, ...]) -> tuple[int | None, ...]:
+        return input_shape
+
+    def get_config(self) -> dict[str, Any]:
+        return {**super().get_config(), "mean": list(self.mean), "std": list(self.std)}
+
+
+# ---------------------------------------------------------------------------------------------
+# The network
+
+#: Name of the layer whose output is the standardised bias (the training target's space).
+HEAD_LAYER = "bias_scaled"
+
+
+def feature_length(window_length: int, pool_size: int) -> int:
+    """Time steps left before the global average: each block is a 'valid' Conv1D (−4) and a
+    pooling (// pool_size).
+
+    Parameters
+    ----------
+    window_length
+        T, samples.
+    pool_size
+        Pooling size and stride.
+    """
+    n = window_length
+    for _ in FILTERS:
+        n = (n - (KERNEL_SIZE - 1)) // pool_size
+    return n
+
+
+def build_ofbenet(window_length: int, params: OFBENetParams, x_mean: Sequence[float],
+                  x_std: Sequence[float], y_mean: Sequence[float], y_std: Sequence[float]) -> keras.Model:
+    """The OFBENet Keras model, uncompiled, with both scalings inside.
+
+    Parameters
+    ----------
+    window_length
+        T, samples per window.
+    params
+        Architecture choices (``pool_size``, ``dense_units``, ``dense_activation``, ``dropout``).
+    x_mean, x_std
+        (3,) input scaling constants, m/s² (``std`` > 0): the first layer computes
+        ``(x − x_mean) / x_std``.
+    y_mean, y_std
+        (3,) target scaling constants, m/s²: the last layer computes ``z · y_std + y_mean``.
+
+    Returns
+    -------
+    keras.Model
+        Input ``window`` (None, T, 3) m/s² → output (None, 3) m/s². The layer named
+        :data:`HEAD_LAYER` gives the scaled output the network is trained on.
+
+    Raises
+    ------
+    EstimatorError
+        A window too short for three blocks, or invalid scaling constants.
+    """
+    if isinstance(window_length, bool) or not isinstance(window_length, int | np.integer):
+        raise EstimatorError(f"window_length: expected an integer, found {window_length!r}")
+    n_feat = feature_length(int(window_length), params.pool_size)
+    if n_feat < 1:
+        raise EstimatorError(f"window_length: expected a window long enough for three Conv1D(kernel "
+                             f"{KERNEL_SIZE}) + AveragePooling1D({params.pool_size}) blocks, found "
+                             f"{window_length} samples")
+    for name, values in (("x_mean", x_mean), ("x_std", x_std), ("y_mean", y_mean), ("y_std", y_std)):
+        if len(_constants(values, name, positive=name.endswith("std"))) != 3:
+            raise EstimatorError(f"{name}: expected 3 values (x, y, z), found {len(values)}")
+    inputs = keras.Input(shape=(int(window_length), 3), name="window")
+    x = Standardise(x_mean, x_std, name="input_scaling")(inputs)
+    for i, filters in enumerate(FILTERS, start=1):
+        x = keras.layers.Conv1D(filters, KERNEL_SIZE, name=f"conv{i}")(x)
+        x = keras.layers.BatchNormalization(name=f"bn{i}")(x)
+        x = keras.layers.LeakyReLU(negative_slope=LEAKY_SLOPE, name=f"leaky_relu{i}")(x)
+        x = keras.layers.AveragePooling1D(pool_size=params.pool_size, name=f"pool{i}")(x)
+    x = keras.layers.GlobalAveragePooling1D(name="global_pool")(x)
+    x = keras.layers.Dense(params.dense_units, activation=params.dense_activation, name="dense")(x)
+    x = keras.layers.Dropout(params.dropout, name="dropout")(x)
+    z = keras.layers.Dense(3, name=HEAD_LAYER)(x)
+    outputs = Destandardise(y_mean, y_std, name="target_scaling")(z)
+    return keras.Model(inputs, outputs, name="ofbenet")
+
+
+# ---------------------------------------------------------------------------------------------
+# Validation split and scaling statistics
+
+
+def group_validation_split(meta: pd.DataFrame, fraction: float, seed: int) -> np.ndarray:
+    """Which windows validate: whole (device, power_cycle) groups, dealt per device.
+
+    For each device, ``round(fraction · n_groups)`` of its groups (at least one when the
+    device has two or more) are drawn at random and all their windows validate.
+
+    Parameters
+    ----------
+    meta
+        One row per training window with ``device`` and ``power_cycle``.
+    fraction
+        Share of each device's groups to hold out, in [0, 1).
+    seed
+        Seed of the draw.
+
+    Returns
+    -------
+    np.ndarray
+        (N,) bool, True for validation windows.
+
+    Raises
+    ------
+    EstimatorError
+        No ``power_cycle`` column, or fewer than two groups in all (nothing to hold out).
+    """
+    n = len(meta)
+    if fraction <= 0:
+        return np.zeros(n, dtype=bool)
+    if "power_cycle" not in meta.columns:
+        raise EstimatorError("meta: expected a power_cycle column to hold out whole bias instances for "
+                             "validation (or validation_split=0), found none")
+    rng = np.random.default_rng(seed)
+    device = meta["device"].astype(str).to_numpy()
+    cycle = meta["power_cycle"].to_numpy()
+    val = np.zeros(n, dtype=bool)
+    for d in sorted(set(device)):
+        mine = device == d
+        groups = np.unique(cycle[mine])
+        if groups.size < 2:
+            continue
+        k = min(groups.size - 1, max(1, int(round(fraction * groups.size))))
+        held = rng.choice(groups, size=k, replace=False)
+        val |= mine & np.isin(cycle, held)
+    if not val.any():
+        raise EstimatorError(f"meta: expected at least two (device, power_cycle) groups for a validation "
+                             f"split of {fraction:g}, found {len(set(zip(device, cycle, strict=True)))}")
+    return val
+
+
+def scaling_constants(windows: np.ndarray, labels: np.ndarray,
+                      params: OFBENetParams) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Input and target scaling constants from training data.
+
+    Parameters
+    ----------
+    windows
+        (N, T, 3) m/s².
+    labels
+        (N, 3) m/s².
+    params
+        ``input_scaling`` and ``target_scaling`` pick the rule (see :class:`OFBENetParams`).
+
+    Returns
+    -------
+    x_mean, x_std, y_mean, y_std
+        Each (3,) float64, m/s²; identity (0, 1) where the scaling is ``"none"``.
+    """
+    ones, zeros = np.ones(3), np.zeros(3)
+    if params.input_scaling == "none":
+        x_mean, x_std = zeros, ones
+    else:
+        axes = (0, 1) if params.input_scaling == "per-axis-standardise" else None
+        x_mean = np.broadcast_to(windows.mean(axis=axes, dtype=np.float64), (3,)).copy()
+        x_std = np.broadcast_to(windows.std(axis=axes, dtype=np.float64), (3,)).copy()
+    if params.target_scaling == "none":
+        y_mean, y_std = zeros, ones
+    else:
+        y_mean = labels.mean(axis=0)
+        y_std = labels.std(axis=0)
+    x_std = np.where(x_std > _STD_FLOOR, x_std, 1.0)
+    y_std = np.where(y_std > _STD_FLOOR, y_std, 1.0)
+    return x_mean, x_std, y_mean, y_std
+
+
+def _op_determinism_enabled() -> bool:
+    """Whether TensorFlow's op determinism is on (no public getter exists; Keras uses this one)."""
+    try:
+        from tensorflow.python.framework.config import is_op_determinism_enabled
+    except ImportError:  # pragma: no cover - a TensorFlow without it
+        return False
+    return bool(is_op_determinism_enabled())
+
+
+def _batches(n: int, size: int) -> Iterator[slice]:
+    for start in range(0, n, size):
+        yield slice(start, min(n, start + size))
+
+
+def _plain_history(history: Mapping[str, Sequence[Any]]) -> dict[str, list[float]]:
+    return {str(k): [float(v) for v in vals] for k, vals in history.items()}
+
+
+# ---------------------------------------------------------------------------------------------
+# The estimator
+
+
+@register
+class OFBENet(Estimator):
+    """The paper's CNN behind the estimator interface.
+
+    Parameters
+    ----------
+    pool_size, dense_units, dense_activation, dropout, input_scaling, target_scaling, max_epochs,
+    validation_split, learning_rate, batch_size, lr_factor, lr_patience, es_patience, seed, jit_compile
+        As :class:`OFBENetParams` (same names, same defaults); stored unchanged and checked in
+        :meth:`fit`.
+
+    Attributes
+    ----------
+    model_
+        The fitted :class:`keras.Model`: raw (N, T, 3) m/s² windows → (N, 3) m/s² biases.
+    history_
+        Per-epoch training record, ``{"loss": [...], "val_loss": [...], "learning_rate":
+        [...]}`` (``val_loss`` only with a validation split). Losses are MSEs of the training
+        targets: dimensionless with ``target_scaling="standardise"``, (m/s²)² otherwise.
+    window_length_
+        T the model was trained on, samples.
+    n_train_, n_val_
+        Windows trained on and validated on.
+    best_epoch_
+        1-based epoch whose weights were kept (lowest monitored loss).
+    fit_seconds_
+        Wall time of :meth:`fit`, s.
+    """
+
+    name: ClassVar[str] = "ofbenet"
+    needs_fit: ClassVar[bool] = True
+
+    def __init__(self, *, pool_size: int = OFBENetParams.pool_size,
+                 dense_units: int = OFBENetParams.dense_units,
+                 dense_activation: str = OFBENetParams.dense_activation,
+                 dropout: float = OFBENetParams.dropout,
+                 input_scaling: str = OFBENetParams.input_scaling,
+                 target_scaling: str = OFBENetParams.target_scaling,
+                 max_epochs: int = OFBENetParams.max_epochs,
+                 validation_split: float = OFBENetParams.validation_split,
+                 learning_rate: float = OFBENetParams.learning_rate,
+                 batch_size: int = OFBENetParams.batch_size,
+                 lr_factor: float = OFBENetParams.lr_factor,
+                 lr_patience: int = OFBENetParams.lr_patience,
+                 es_patience: int = OFBENetParams.es_patience,
+                 seed: int = OFBENetParams.seed,
+                 jit_compile: bool = OFBENetParams.jit_compile) -> None:
+        self.pool_size = pool_size
+        self.dense_units = dense_units
+        self.dense_activation = dense_activation
+        self.dropout = dropout
+        self.input_scaling = input_scaling
+        self.target_scaling = target_scaling
+        self.max_epochs = max_epochs
+        self.validation_split = validation_split
+        self.learning_rate = learning_rate
+        self.batch_size = batch_size
+        self.lr_factor = lr_factor
+        self.lr_patience = lr_patience
+        self.es_patience = es_patience
+        self.seed = seed
+        self.jit_compile = jit_compile
+
+    @classmethod
+    def from_params(cls, params: OFBENetParams) -> OFBENet:
+        """A new estimator with the values of ``params``."""
+        return cls(**params.to_dict())
+
+    @property
+    def params(self) -> OFBENetParams:
+        """The current parameters, checked.
+
+        Raises
+        ------
+        EstimatorError
+            A parameter out of range (the message names it).
+        """
+        try:
+            return OFBENetParams(**self.get_params())
+        except ConfigError as exc:
+            raise EstimatorError(f"ofbenet: {exc}") from None
+
+    # -- training ---------------------------------------------------------------------------
+
+    def fit(self, windows: np.ndarray, labels: np.ndarray, meta: pd.DataFrame, *,
+            verbose: int = 0) -> OFBENet:
+        """Train on windows and their labels.
+
+        Parameters
+        ----------
+        windows
+            (N, T, 3) m/s², sensor frame.
+        labels
+            (N, 3) apparent-bias labels, m/s².
+        meta
+            N rows with ``device`` and ``g_local`` and, when ``validation_split`` > 0,
+            ``power_cycle`` (validation holds out whole bias instances).
+        verbose
+            Keras progress: 0 silent, 2 one line per epoch (1, a progress bar, also works).
+
+        Returns
+        -------
+        self
+
+        Raises
+        ------
+        EstimatorError
+            Bad shapes or meta, a bad parameter, a window too short for the network, too few
+            groups to validate on, or a loss that became NaN or infinite.
+        """
+        params = self.params
+        check_inputs(windows, meta, labels)
+        x = np.asarray(windows, dtype=np.float32)
+        y = np.asarray(labels, dtype=np.float64)
+        if not (np.isfinite(x).all() and np.isfinite(y).all()):
+            raise EstimatorError("windows, labels: expected finite values, found NaN or infinity")
+        t0 = time.perf_counter()
+        keras.utils.set_random_seed(params.seed)
+        if not params.jit_compile:
+            # Keras turns XLA off whenever op determinism is on, so it is only enabled without XLA
+            tf.config.experimental.enable_op_determinism()
+        elif _op_determinism_enabled():
+            warnings.warn("ofbenet: jit_compile=True, but op determinism is already enabled in this process "
+                          "(by an earlier fit without XLA), so Keras trains without XLA: the weights differ "
+                          "from a fit with XLA in a fresh process", UserWarning, stacklevel=2)
+        val = group_validation_split(meta.reset_index(drop=True), params.validation_split, params.seed)
+        x_tr, y_tr = x[~val], y[~val]
+        if x_tr.shape[0] == 0:
+            raise EstimatorError("meta: expected training windows left after the validation split, "
+                                 "found none")
+        x_mean, x_std, y_mean, y_std = scaling_constants(x_tr, y_tr, params)
+        model = build_ofbenet(int(x.shape[1]), params, x_mean, x_std, y_mean, y_std)
+        trainer = keras.Model(model.inputs, model.get_layer(HEAD_LAYER).output, name="ofbenet_train")
+        trainer.compile(optimizer=keras.optimizers.Adam(learning_rate=params.learning_rate), loss="mse",
+                        jit_compile=params.jit_compile)
+
+        def target(v: np.ndarray) -> np.ndarray:
+            return ((v - y_mean) / y_std).astype(np.float32)
+
+        monitor = "val_loss" if val.any() else "loss"
+        callbacks = [
+            keras.callbacks.TerminateOnNaN(),
+            keras.callbacks.ReduceLROnPlateau(monitor=monitor, factor=params.lr_factor,
+                                              patience=params.lr_patience, verbose=0),
+            keras.callbacks.EarlyStopping(monitor=monitor, patience=params.es_patience,
+                                          restore_best_weights=True, verbose=0),
+        ]
+        validation = (x[val], target(y[val])) if val.any() else None
+        hist = trainer.fit(x_tr, target(y_tr), batch_size=params.batch_size, epochs=params.max_epochs,
+                           validation_data=validation, validation_batch_size=EVAL_BATCH, shuffle=True,
+                           callbacks=callbacks, verbose=verbose)
+        history = _plain_history(hist.history)
+        losses = np.asarray(history.get(monitor, []), dtype=np.float64)
+        if losses.size == 0 or not np.isfinite(losses).all():
+            raise EstimatorError(f"ofbenet: expected a finite {monitor} in every epoch, found "
+                                 f"{losses.tolist()} (training diverged: lower learning_rate)")
+        self.model_ = model
+        self.history_ = history
+        self.window_length_ = int(x.shape[1])
+        self.n_train_ = int(x_tr.shape[0])
+        self.n_val_ = int(val.sum())
+        self.best_epoch_ = int(np.argmin(losses)) + 1
+        self.fit_seconds_ = time.perf_counter() - t0
+        return self
+
+    # -- prediction -------------------------------------------------------------------------
+
+    def _check_fitted(self) -> keras.Model:
+        model = getattr(self, "model_", None)
+        if model is None:
+            raise EstimatorError("ofbenet: expected a fitted or loaded model, found none (call fit or load)")
+        return model
+
+    def predict(self, windows: np.ndarray, meta: pd.DataFrame) -> np.ndarray:
+        """Bias estimates.
+
+        Parameters
+        ----------
+        windows
+            (N, T, 3) m/s² with the T the model was trained on.
+        meta
+            N rows (``device``, ``g_local``; not otherwise used).
+
+        Returns
+        -------
+        np.ndarray
+            (N, 3) float64, m/s².
+
+        Raises
+        ------
+        EstimatorError
+            No model yet, bad shapes or meta, or a window length the model was not built for.
+        """
+        model = self._check_fitted()
+        check_inputs(windows, meta)
+        x = np.asarray(windows, dtype=np.float32)
+        t = int(model.inputs[0].shape[1])
+        if x.shape[1] != t:
+            raise EstimatorError(f"windows: expected windows of {t} samples (what the model was trained on), "
+                                 f"found {x.shape[1]}")
+        out = np.empty((x.shape[0], 3), dtype=np.float64)
+        for s in _batches(x.shape[0], EVAL_BATCH):
+            out[s] = np.asarray(model.predict_on_batch(x[s]), dtype=np.float64)
+        return out
+
+    # -- persistence ------------------------------------------------------------------------
+
+    def _sidecar(self) -> dict[str, Any]:
+        return {"format": SIDECAR_FORMAT, "estimator": self.name, "params": self.params.to_dict(),
+                "window_length": getattr(self, "window_length_", None),
+                "history": getattr(self, "history_", None), "n_train": getattr(self, "n_train_", None),
+                "n_val": getattr(self, "n_val_", None), "best_epoch": getattr(self, "best_epoch_", None),
+                "fit_seconds": getattr(self, "fit_seconds_", None),
+                "versions": {"keras": keras.__version__, "tensorflow": tf.__version__}}
+
+    def save(self, path: str | Path) -> Path:
+        """Write the model as one ``.keras`` file, atomically.
+
+        The Keras archive (architecture with both scalings, weights) gets one more member,
+        :data:`SIDECAR_NAME`, with the estimator's parameters and training history as JSON.
+        The file is written under a temporary name in the same folder and renamed, so a
+        reader sees the old file or the complete new one.
+
+        Parameters
+        ----------
+        path
+            Target file, ending in ``.keras``; its folder is created.
+
+        Returns
+        -------
+        Path
+            The written file.
+
+        Raises
+        ------
+        EstimatorError
+            No model yet, or a path not ending in ``.keras``.
+        """
+        model = self._check_fitted()
+        path = Path(path)
+        if path.suffix != ".keras":
+            raise EstimatorError(f"{path}: expected a file name ending in .keras, "
+                                 f"found {path.suffix or 'none'}")
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp_name = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".tmp.keras", dir=path.parent)
+        os.close(fd)
+        tmp = Path(tmp_name)
+        try:
+            model.save(tmp, overwrite=True)
+            with zipfile.ZipFile(tmp, "a", compression=zipfile.ZIP_DEFLATED) as zf:
+                zf.writestr(SIDECAR_NAME, json.dumps(self._sidecar(), indent=2, allow_nan=False))
+            mask = os.umask(0)
+            os.umask(mask)
+            os.chmod(tmp, 0o666 & ~mask)
+            os.replace(tmp, path)
+        except BaseException:
+            tmp.unlink(missing_ok=True)
+            raise
+        return path
+
+    @classmethod
+    def load(cls, path: str | Path) -> OFBENet:
+        """Read a model written by :meth:`save`, without executing code from the file.
+
+        The archive's ``config.json`` is checked first: every serialised object must come
+        from Keras or be one of this module's registered scaling layers, and Lambda-like
+        layers are refused. Then ``keras.saving.load_model(path, safe_mode=True,
+        compile=False)`` builds it, and the result must map (None, T, 3) to (None, 3).
+
+        Parameters
+        ----------
+        path
+            A ``.keras`` file.
+
+        Returns
+        -------
+        OFBENet
+            With ``model_`` set and, when the file has them, the saved parameters,
+            ``history_`` and training record (defaults otherwise).
+
+        Raises
+        ------
+        EstimatorError
+            A missing file, a file that is not a ``.keras`` archive, a configuration with
+            unsafe or foreign objects, or a model of another shape (the message names the
+            file and what was expected).
+        """
+        path = Path(path)
+        expected = "an OFBENet .keras model file (a zip archive written by OFBENet.save)"
+        if path.suffix != ".keras":
+            raise EstimatorError(f"{path}: expected {expected}, found a file name ending in "
+                                 f"{path.suffix or 'no suffix'}")
+        if not path.is_file():
+            raise EstimatorError(f"{path}: expected {expected}, found no such file")
+        if not zipfile.is_zipfile(path):
+            raise EstimatorError(f"{path}: expected {expected}, found a file that is not a zip archive")
+        try:
+            with zipfile.ZipFile(path) as zf:
+                names = set(zf.namelist())
+                missing = [n for n in _KERAS_FILES if n not in names]
+                if missing:
+                    raise EstimatorError(f"{path}: expected {expected}, found an archive without "
+                                         f"{', '.join(missing)}")
+                config = json.loads(zf.read("config.json"))
+                sidecar = json.loads(zf.read(SIDECAR_NAME)) if SIDECAR_NAME in names else None
+        except (zipfile.BadZipFile, OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+            raise EstimatorError(f"{path}: expected {expected}, found an unreadable archive ({exc})") from exc
+        _check_config(config, path)
+        try:
+            model = keras.saving.load_model(path, safe_mode=True, compile=False)
+        except Exception as exc:  # Keras raises ValueError, TypeError, KeyError, OSError... on bad files
+            first = str(exc).splitlines()[0][:300] if str(exc) else type(exc).__name__
+            raise EstimatorError(f"{path}: expected {expected} that Keras loads in safe mode, found an "
+                                 f"error: {first}") from exc
+        if (not isinstance(model, keras.Model) or len(model.inputs) != 1 or len(model.outputs) != 1
+                or len(model.inputs[0].shape) != 3 or model.inputs[0].shape[2] != 3
+                or model.inputs[0].shape[1] is None or tuple(model.outputs[0].shape)[1:] != (3,)):
+            shapes = ([tuple(i.shape) for i in model.inputs], [tuple(o.shape) for o in model.outputs]) \
+                if isinstance(model, keras.Model) else type(model).__name__
+            raise EstimatorError(f"{path}: expected a model mapping (None, T, 3) windows to (None, 3) "
+                                 f"biases, found {shapes}")
+        est = cls._from_sidecar(sidecar, path)
+        est.model_ = model
+        est.window_length_ = int(model.inputs[0].shape[1])
+        return est
+
+    @classmethod
+    def _from_sidecar(cls, sidecar: Any, path: Path) -> OFBENet:
+        if sidecar is None:
+            return cls()
+        if not isinstance(sidecar, dict) or sidecar.get("format") != SIDECAR_FORMAT:
+            found = sidecar.get("format") if isinstance(sidecar, dict) else type(sidecar).__name__
+            raise EstimatorError(f"{path}: {SIDECAR_NAME}: expected format {SIDECAR_FORMAT}, found {found!r}")
+        params = sidecar.get("params")
+        if not isinstance(params, dict) or set(params) - set(_PARAM_NAMES):
+            raise EstimatorError(f"{path}: {SIDECAR_NAME}: params: expected a mapping of OFBENet parameters "
+                                 f"({', '.join(_PARAM_NAMES)}), found {params!r}")
+        try:
+            est = cls.from_params(OFBENetParams(**params))
+        except ConfigError as exc:
+            raise EstimatorError(f"{path}: {SIDECAR_NAME}: {exc}") from None
+        history = sidecar.get("history")
+        if isinstance(history, dict):
+            est.history_ = _plain_history(history)
+        for key in ("n_train", "n_val", "best_epoch"):
+            if isinstance(sidecar.get(key), int):
+                setattr(est, f"{key}_", sidecar[key])
+        if isinstance(sidecar.get("fit_seconds"), int | float):
+            est.fit_seconds_ = float(sidecar["fit_seconds"])
+        return est
+
+
+def _check_config(config: Any, path: Path) -> None:
+    """Refuse a model configuration naming anything but Keras objects and this module's layers.
+
+    Raises
+    ------
+    EstimatorError
+        A Lambda-like layer, an object from another module, or a model that is not a
+        Functional model.
+    """
+    own = {f"ofbe>{c.__name__}" for c in (Standardise, Destandardise)}
+    if not isinstance(config, dict) or config.get("class_name") != "Functional":
+        found = config.get("class_name") if isinstance(config, dict) else type(config).__name__
+        raise EstimatorError(f"{path}: config.json: expected a Functional Keras model, found {found!r}")
+    stack: list[Any] = [config]
+    while stack:
+        node = stack.pop()
+        if isinstance(node, list):
+            stack.extend(node)
+            continue
+        if not isinstance(node, dict):
+            continue
+        stack.extend(node.values())
+        cls_name = node.get("class_name")
+        if cls_name is None or cls_name == "__keras_tensor__":  # the latter: a reference to a layer output
+            continue
+        if cls_name in _REFUSED_CLASSES:
+            raise EstimatorError(f"{path}: config.json: expected only layers that carry no code, found a "
+                                 f"{cls_name!r} object (refused: it could execute code)")
+        module = node.get("module")
+        registered = node.get("registered_name")
+        keras_builtin = isinstance(module, str) and (module == "keras" or module.startswith("keras."))
+        if module == "builtins" and cls_name == "function":
+            keras_builtin = True
+        if not (keras_builtin or (module == __name__ and registered in own)):
+            raise EstimatorError(f"{path}: config.json: expected Keras objects and ofbe scaling layers only, "
+                                 f"found {cls_name!r} from module {module!r}")

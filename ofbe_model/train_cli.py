@@ -1,0 +1,343 @@
+"""``ofbe-train``: train OFBENet on every fold of a windowed dataset under one protocol.
+
+Usage::
+
+    ofbe-train processed/datasets/rotated --protocol grouped [--out models] [--folds 0 1]
+               [--max-epochs N] [--params params.yaml] [--quiet]
+
+For every benchmark dataset (the pooled campaign, or one per device: see
+:mod:`ofbe_model.evaluation`) and every fold of :func:`~ofbe_model.evaluation.protocol_splits`,
+OFBENet is fitted on that fold's training windows (never its test signals) and written to
+``<out>/<dataset>/<protocol>/`` with ``/`` in the dataset name replaced by ``__``:
+
+``fold-<k>.keras``
+    The model: raw (N, T, 3) m/s² windows → (N, 3) m/s² biases, scalings inside
+    (:meth:`ofbe_model.ofbenet.OFBENet.load`).
+``fold-<k>.history.csv``
+    Per epoch: ``epoch`` (1-based), ``loss``, ``val_loss``, ``learning_rate``.
+``fold-<k>.training.png``
+    The training curve: loss and validation loss against epoch, log scale.
+``training.json``
+    Per fold: epochs run, best epoch and validation loss, seconds, windows trained on,
+    validated on and held out for testing, and the parameters. Folds trained earlier and not
+    named by ``--folds`` are kept.
+
+Parameters come from the ``train:`` section of ``--params`` (keys: the fields of
+:class:`~ofbe_model.ofbenet.OFBENetParams`), then ``--max-epochs``. Existing files of the
+folds trained are replaced; every file is written atomically.
+
+Exit status: 0 on success, 1 when the data are bad or training fails, 2 on a usage or
+parameter error (unknown key, unknown protocol or fold, missing dataset folder). Every error
+is one line.
+"""
+
+from __future__ import annotations
+
+import argparse
+import io
+import json
+import sys
+import time
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from matplotlib.ticker import MaxNLocator
+
+from ofbe_data.atomic import write_bytes_atomic
+from ofbe_data.datastore import fold_column, load_dataset
+from ofbe_data.errors import ConfigError, OfbeError
+from ofbe_data.typedconfig import from_plain, read_section
+from ofbe_model.evaluation import Split, protocol_splits
+from ofbe_model.figures import new_figure, save_png
+from ofbe_model.ofbenet import OFBENet, OFBENetParams
+
+PROG = "ofbe-train"
+#: ``format`` of ``training.json``.
+SUMMARY_FORMAT = "ofbe-training/1"
+SUMMARY_NAME = "training.json"
+PARAMS_SECTION = "train"
+
+
+class _Usage(Exception):
+    """A usage error: exit 2 with this message."""
+
+
+def read_params(path: str | Path | None, max_epochs: int | None = None) -> OFBENetParams:
+    """OFBENet parameters from the ``train:`` section of a YAML file, then ``max_epochs``.
+
+    Parameters
+    ----------
+    path
+        YAML file (e.g. params.yaml) or None for the defaults. A file without a ``train:``
+        section gives the defaults.
+    max_epochs
+        Overrides ``max_epochs`` when given.
+
+    Raises
+    ------
+    ConfigError
+        Unreadable YAML, an unknown key (the message lists the known ones), a value of the
+        wrong type or out of range; the message names the file and the key.
+    """
+    source: str | Path = path if path is not None else "command line"
+    data = dict(read_section(path, PARAMS_SECTION)) if path is not None else {}
+    if max_epochs is not None:
+        data["max_epochs"] = max_epochs
+    try:
+        return from_plain(data, OFBENetParams, source, PARAMS_SECTION)
+    except ConfigError as exc:
+        if exc.source == "OFBENetParams":  # a range check of the dataclass: name the file and key
+            key = "--max-epochs" if exc.key == "max_epochs" and max_epochs is not None else \
+                f"{PARAMS_SECTION}.{exc.key}"
+            raise ConfigError(source, key, exc.expected, exc.found) from None
+        raise
+
+
+def dataset_dirname(name: str) -> str:
+    """Folder name of a benchmark dataset: ``rotated/sparkfun-1`` → ``rotated__sparkfun-1``."""
+    return name.replace("/", "__")
+
+
+def history_csv(history: Mapping[str, Sequence[float]]) -> bytes:
+    """The per-epoch history as CSV bytes: ``epoch`` (1-based) then ``loss``, ``val_loss``,
+    ``learning_rate`` (those present, in that order, then any others)."""
+    order = [k for k in ("loss", "val_loss", "learning_rate") if k in history]
+    order += sorted(k for k in history if k not in order)
+    n = len(history[order[0]]) if order else 0
+    frame = pd.DataFrame({"epoch": np.arange(1, n + 1), **{k: list(history[k]) for k in order}})
+    buf = io.StringIO()
+    frame.to_csv(buf, index=False, float_format="%.9g", lineterminator="\n")
+    return buf.getvalue().encode()
+
+
+def loss_label(params: OFBENetParams) -> str:
+    """What the loss values are, with units."""
+    if params.target_scaling == "standardise":
+        return "MSE of standardised targets (dimensionless)"
+    return "MSE of biases, (m/s²)²"
+
+
+def plot_history(history: Mapping[str, Sequence[float]], path: Path, title: str, ylabel: str,
+                 best_epoch: int | None) -> Path:
+    """Training curve: loss and validation loss against epoch (log y), the kept epoch marked.
+
+    Parameters
+    ----------
+    history
+        ``loss`` and optionally ``val_loss``, one value per epoch.
+    path
+        Target PNG.
+    title, ylabel
+        Figure title and y-axis label.
+    best_epoch
+        1-based epoch whose weights were kept, or None.
+    """
+    fig, ax = new_figure()
+    for key, label in (("loss", "training loss"), ("val_loss", "validation loss")):
+        values = np.asarray(history.get(key, []), dtype=np.float64)
+        if values.size:
+            ax.plot(np.arange(1, values.size + 1), values, marker="o", markersize=3, label=label)
+    if best_epoch is not None:
+        ax.axvline(best_epoch, color="0.4", linestyle="--", linewidth=1, label=f"kept: epoch {best_epoch}")
+    ax.set_yscale("log")
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+    ax.set_xlabel("epoch")
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    ax.legend(frameon=False)
+    return save_png(fig, path)
+
+
+def _read_summary(path: Path, dataset: str, protocol: str) -> dict[int, dict[str, Any]]:
+    """Fold entries of an existing training.json of the same dataset and protocol ({} otherwise)."""
+    try:
+        old = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return {}
+    if (not isinstance(old, dict) or old.get("format") != SUMMARY_FORMAT or old.get("dataset") != dataset
+            or old.get("protocol") != protocol or not isinstance(old.get("folds"), list)):
+        return {}
+    return {int(f["fold"]): f for f in old["folds"] if isinstance(f, dict) and isinstance(f.get("fold"), int)}
+
+
+def train_fold(x: np.ndarray, y: np.ndarray, meta: pd.DataFrame, split: Split, params: OFBENetParams,
+               folder: Path, protocol: str, verbose: int) -> dict[str, Any]:
+    """Fit one fold and write its model, history CSV and training curve.
+
+    Parameters
+    ----------
+    x, y, meta
+        The whole dataset: (N, T, 3) m/s², (N, 3) m/s², N rows.
+    split
+        The fold (its ``train`` rows are fitted; its ``test`` rows are only counted).
+    params
+        OFBENet parameters.
+    folder
+        ``<out>/<dataset>/<protocol>``.
+    protocol
+        Protocol name (for the figure title).
+    verbose
+        Keras verbosity (0 or 2).
+
+    Returns
+    -------
+    dict
+        The fold's ``training.json`` entry.
+    """
+    stem = f"fold-{split.fold}"
+    t0 = time.perf_counter()
+    est = OFBENet.from_params(params).fit(x[split.train], y[split.train],
+                                          meta.iloc[split.train].reset_index(drop=True), verbose=verbose)
+    seconds = time.perf_counter() - t0
+    est.save(folder / f"{stem}.keras")
+    write_bytes_atomic(folder / f"{stem}.history.csv", history_csv(est.history_))
+    plot_history(est.history_, folder / f"{stem}.training.png",
+                 f"OFBENet, {split.dataset}, {protocol}, fold {split.fold}", loss_label(params),
+                 est.best_epoch_)
+    val = est.history_.get("val_loss")
+    lr = est.history_.get("learning_rate")
+    return {"fold": split.fold, "model": f"{stem}.keras", "history": f"{stem}.history.csv",
+            "curve": f"{stem}.training.png", "epochs_run": len(est.history_["loss"]),
+            "best_epoch": est.best_epoch_, "best_val_loss": min(val) if val else None,
+            "best_loss": est.history_["loss"][est.best_epoch_ - 1],
+            "final_learning_rate": lr[-1] if lr else None, "seconds": round(seconds, 3),
+            "n_train": est.n_train_, "n_val": est.n_val_, "n_test": int(split.test.size),
+            "params": params.to_dict()}
+
+
+def train(dataset: str | Path, protocol: str, out: str | Path, params: OFBENetParams,
+          folds: Sequence[int] | None = None, progress: bool = True) -> list[Path]:
+    """Train every (selected) fold of every benchmark dataset of one windowed dataset.
+
+    Parameters
+    ----------
+    dataset
+        Dataset folder (``processed/datasets/<name>``).
+    protocol
+        A protocol of the dataset (a ``fold_<protocol>`` column).
+    out
+        Models folder.
+    params
+        OFBENet parameters.
+    folds
+        Fold indices to train (all when None).
+    progress
+        Per-fold lines on stderr and Keras' one line per epoch.
+
+    Returns
+    -------
+    list of Path
+        The ``training.json`` files written.
+
+    Raises
+    ------
+    _Usage
+        Unknown protocol or fold.
+    OfbeError
+        A bad dataset (:class:`~ofbe_data.datastore.DatasetError`) or a failed fit
+        (:class:`~ofbe_model.base.EstimatorError`).
+    """
+    ds = load_dataset(dataset)
+    meta = ds.meta
+    col = fold_column(protocol)
+    if col not in meta.columns:
+        have = sorted(c.removeprefix("fold_") for c in meta.columns if c.startswith("fold_"))
+        raise _Usage(f"--protocol: expected one of this dataset's protocols ({', '.join(have)}), "
+                     f"found {protocol!r}")
+    splits = list(protocol_splits(meta, str(ds.info["kind"]), protocol))
+    available = sorted({s.fold for s in splits})
+    if folds is not None:
+        unknown = sorted(set(folds) - set(available))
+        if unknown:
+            raise _Usage(f"--folds: expected folds of {protocol} ({', '.join(map(str, available))}), "
+                         f"found {', '.join(map(str, unknown))}")
+        splits = [s for s in splits if s.fold in set(folds)]
+    out = Path(out)
+    written: list[Path] = []
+    by_dataset: dict[str, list[Split]] = {}
+    for s in splits:
+        by_dataset.setdefault(s.dataset, []).append(s)
+    done = 0
+    for name, group in by_dataset.items():
+        folder = out / dataset_dirname(name) / protocol
+        folder.mkdir(parents=True, exist_ok=True)
+        summary_path = folder / SUMMARY_NAME
+        entries = _read_summary(summary_path, name, protocol)
+        for split in group:
+            done += 1
+            if progress:
+                print(f"{PROG}: [{done}/{len(splits)}] {name} {protocol} fold {split.fold}: training on "
+                      f"{split.train.size} windows (test signals held out: {split.test.size})",
+                      file=sys.stderr, flush=True)
+            entry = train_fold(ds.X, ds.y, meta, split, params, folder, protocol, 2 if progress else 0)
+            entries[split.fold] = entry
+            summary = {"format": SUMMARY_FORMAT, "dataset": name, "dataset_path": str(dataset),
+                       "protocol": protocol, "kind": str(ds.info["kind"]), "devices": list(split.devices),
+                       "window_length": int(ds.X.shape[1]), "loss": loss_label(params),
+                       "folds": [entries[k] for k in sorted(entries)]}
+            write_bytes_atomic(summary_path, (json.dumps(summary, indent=2, allow_nan=False) + "\n").encode())
+            if progress:
+                best = entry["best_val_loss"] if entry["best_val_loss"] is not None else entry["best_loss"]
+                print(f"{PROG}: {name} fold {split.fold}: {entry['epochs_run']} epochs "
+                      f"(kept {entry['best_epoch']}, loss {best:.4g}) in {entry['seconds']:.1f} s "
+                      f"-> {folder / entry['model']}",
+                      file=sys.stderr, flush=True)
+        written.append(summary_path)
+    return written
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog=PROG,
+                                description="Train OFBENet on every fold of a windowed dataset under one "
+                                            "protocol; write models, histories, curves and a summary.")
+    p.add_argument("dataset", help="dataset folder (processed/datasets/<name>)")
+    p.add_argument("--protocol", required=True, help="protocol: a fold_<protocol> column of the dataset")
+    p.add_argument("--out", default="models", help="models folder (default: models)")
+    p.add_argument("--folds", type=int, nargs="+", metavar="K", help="train only these folds (default: all)")
+    p.add_argument("--max-epochs", type=int, help="override train.max_epochs")
+    p.add_argument("--params", help="YAML file whose 'train:' section sets the OFBENet parameters")
+    p.add_argument("--quiet", action="store_true", help="no progress (per-fold and per-epoch lines)")
+    return p
+
+
+def _fail(message: str, code: int) -> int:
+    print(f"{PROG}: error: {message}", file=sys.stderr)
+    return code
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of ``ofbe-train``.
+
+    Returns
+    -------
+    int
+        0 on success, 1 on bad data or a failed fit, 2 on a usage or parameter error.
+    """
+    args = _parser().parse_args(argv)
+    try:
+        params = read_params(args.params, args.max_epochs)
+        fold_column(args.protocol)
+    except OfbeError as exc:
+        return _fail(str(exc), 2)
+    dataset = Path(args.dataset)
+    if not dataset.is_dir():
+        return _fail(f"{dataset}: expected a dataset folder, found no such folder", 2)
+    t0 = time.perf_counter()
+    try:
+        written = train(dataset, args.protocol, args.out, params, args.folds, progress=not args.quiet)
+    except _Usage as exc:
+        return _fail(str(exc), 2)
+    except (OfbeError, OSError) as exc:
+        return _fail(str(exc), 1)
+    if not args.quiet:
+        print(f"{PROG}: trained {args.protocol} on {dataset} in {time.perf_counter() - t0:.0f} s; summaries: "
+              f"{', '.join(map(str, written))}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
+

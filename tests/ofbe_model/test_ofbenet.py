@@ -1,0 +1,359 @@
+"""OFBENet: architecture, scaling inside the model, learning, determinism, safe save/load, ofbe-train."""
+
+from __future__ import annotations
+
+import dataclasses
+import inspect
+import json
+import os
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import keras
+import matplotlib.image as mpimg
+import numpy as np
+import pandas as pd
+import pytest
+import tensorflow as tf
+
+from ofbe_data.atomic import atomic_directory
+from ofbe_data.datastore import DatasetInfo, WindowWriter
+from ofbe_data.errors import ConfigError
+from ofbe_model.base import EstimatorError, make_estimator
+from ofbe_model.ofbenet import (
+    FILTERS,
+    SIDECAR_NAME,
+    Destandardise,
+    OFBENet,
+    OFBENetParams,
+    Standardise,
+    build_ofbenet,
+    feature_length,
+    group_validation_split,
+)
+from ofbe_model.train_cli import dataset_dirname, main, read_params
+
+T = 200
+G = 9.81
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def synthetic(n: int, seed: int) -> tuple[np.ndarray, np.ndarray, pd.DataFrame]:
+    """Level windows: label b (one per pair of windows = one power cycle), window = b + g·z + noise."""
+    rng = np.random.default_rng(seed)
+    b = rng.normal(0.0, 0.3, size=(n // 2, 3)).repeat(2, axis=0)
+    x = (b[:, None, :] + np.array([0.0, 0.0, G]) + rng.normal(0.0, 0.05, size=(n, T, 3))).astype(np.float32)
+    meta = pd.DataFrame({"device": "d1", "g_local": G, "power_cycle": np.arange(n) // 2})
+    return x, b, meta
+
+
+@pytest.fixture(scope="module")
+def fitted() -> tuple[OFBENet, np.ndarray, np.ndarray, pd.DataFrame]:
+    x, y, meta = synthetic(96, seed=0)
+    est = OFBENet(max_epochs=20).fit(x, y, meta)
+    xt, yt, mt = synthetic(64, seed=1)
+    return est, xt, yt, mt
+
+
+# --------------------------------------------------------------------------------------------
+# architecture and parameters
+
+
+def test_architecture_follows_the_paper() -> None:
+    params = OFBENetParams()
+    model = build_ofbenet(T, params, [0, 0, G], [1, 1, 1], [0, 0, 0], [1, 1, 1])
+    kinds = [type(layer).__name__ for layer in model.layers]
+    block = ["Conv1D", "BatchNormalization", "LeakyReLU", "AveragePooling1D"]
+    assert kinds == ["InputLayer", "Standardise", *block * 3, "GlobalAveragePooling1D", "Dense", "Dropout",
+                     "Dense", "Destandardise"]
+    convs = [la for la in model.layers if isinstance(la, keras.layers.Conv1D)]
+    assert tuple(c.filters for c in convs) == FILTERS == (8, 32, 64)
+    assert all(c.kernel_size == (5,) for c in convs)
+    assert all(la.negative_slope == pytest.approx(0.1) for la in model.layers
+               if isinstance(la, keras.layers.LeakyReLU))
+    assert all(la.pool_size == (params.pool_size,) for la in model.layers
+               if isinstance(la, keras.layers.AveragePooling1D))
+    dense = [la for la in model.layers if isinstance(la, keras.layers.Dense)]
+    assert [d.units for d in dense] == [params.dense_units, 3]
+    assert model.get_layer("dropout").rate == pytest.approx(params.dropout)
+    assert tuple(model.input_shape) == (None, T, 3) and tuple(model.output_shape) == (None, 3)
+    assert feature_length(3000, 4) == 45
+    with pytest.raises(EstimatorError, match="window_length"):
+        build_ofbenet(40, params, [0] * 3, [1] * 3, [0] * 3, [1] * 3)
+
+
+def test_scaling_is_inside_the_model() -> None:
+    x = np.random.default_rng(0).normal(size=(4, 7, 3)).astype(np.float32) + 5.0
+    z = np.asarray(Standardise([1.0, 2.0, 3.0], [2.0, 4.0, 0.5])(x))
+    assert np.allclose(z, (x - [1.0, 2.0, 3.0]) / [2.0, 4.0, 0.5], atol=1e-6)
+    y = np.asarray(Destandardise([1.0, 2.0, 3.0], [2.0, 4.0, 0.5])(z[:, 0, :]))
+    assert np.allclose(y, x[:, 0, :], atol=1e-5)
+    # with a zero head, the model's output is exactly the target mean, in m/s², for raw input
+    model = build_ofbenet(T, OFBENetParams(), [0, 0, G], [0.1, 0.1, 0.1], [0.05, -0.2, 0.3], [0.3, 0.3, 0.3])
+    head = model.get_layer("bias_scaled")
+    head.set_weights([np.zeros_like(w) for w in head.get_weights()])
+    out = np.asarray(model.predict_on_batch(synthetic(4, 0)[0]))
+    assert np.allclose(out, [0.05, -0.2, 0.3], atol=1e-6)
+    with pytest.raises(EstimatorError, match="std"):
+        Standardise([0.0], [0.0])
+
+
+def test_init_mirrors_params_and_registry() -> None:
+    fields = {f.name: f.default for f in dataclasses.fields(OFBENetParams)}
+    sig = inspect.signature(OFBENet.__init__).parameters
+    assert {k: v.default for k, v in sig.items() if k != "self"} == fields
+    est = make_estimator("ofbenet", dropout=0.3)
+    assert isinstance(est, OFBENet) and est.get_params() == {**fields, "dropout": 0.3}
+    assert OFBENet.name == "ofbenet" and OFBENet.needs_fit
+    with pytest.raises(ConfigError, match="pool_size"):
+        OFBENetParams(pool_size=0)
+    x, y, meta = synthetic(8, 0)
+    with pytest.raises(EstimatorError, match="dropout"):
+        OFBENet(dropout=1.5).fit(x, y, meta)
+    with pytest.raises(EstimatorError, match="fitted or loaded"):
+        OFBENet().predict(x, meta)
+
+
+def test_validation_split_keeps_bias_instances_apart() -> None:
+    meta = pd.DataFrame({"device": np.repeat(["a", "b"], 30), "g_local": G,
+                         "power_cycle": np.tile(np.arange(10).repeat(3), 2)})
+    val = group_validation_split(meta, 0.2, seed=0)
+    keys = list(zip(meta["device"], meta["power_cycle"], strict=True))
+    assert not {k for k, v in zip(keys, val, strict=True) if v} & {k for k, v in zip(keys, val, strict=True)
+                                                                     if not v}
+    assert val[:30].sum() == 6 and val[30:].sum() == 6  # 2 of 10 cycles per device
+    assert np.array_equal(val, group_validation_split(meta, 0.2, seed=0))
+    with pytest.raises(EstimatorError, match="power_cycle"):
+        group_validation_split(meta.drop(columns="power_cycle"), 0.2, seed=0)
+
+
+# --------------------------------------------------------------------------------------------
+# training
+
+
+def test_learns_biases_in_label_units(fitted) -> None:
+    est, xt, yt, mt = fitted
+    loss = est.history_["loss"]
+    assert set(est.history_) >= {"loss", "val_loss", "learning_rate"} and len(loss) <= 20
+    assert loss[-1] < 0.5 * loss[0]
+    pred = est.predict(xt, mt)  # raw m/s² windows in, m/s² out
+    assert pred.shape == (64, 3) and pred.dtype == np.float64
+    for axis in range(3):
+        assert np.corrcoef(pred[:, axis], yt[:, axis])[0, 1] > 0.7
+    assert np.sqrt(np.mean((pred - yt) ** 2)) < 0.6 * yt.std()
+    assert est.n_train_ + est.n_val_ == 96 and est.n_val_ > 0
+    with pytest.raises(EstimatorError, match="200 samples"):
+        est.predict(xt[:, :100], mt)
+
+
+def test_two_fits_are_identical() -> None:
+    x, y, meta = synthetic(24, seed=3)
+    a = OFBENet(max_epochs=2, seed=7).fit(x, y, meta)
+    b = OFBENet(max_epochs=2, seed=7).fit(x, y, meta)
+    wa, wb = a.model_.get_weights(), b.model_.get_weights()
+    assert len(wa) == len(wb) and all(np.array_equal(p, q) for p, q in zip(wa, wb, strict=True))
+    assert a.history_ == b.history_
+
+
+def test_xla_after_op_determinism_warns() -> None:
+    tf.config.experimental.enable_op_determinism()  # as any earlier fit without XLA does
+    x, y, meta = synthetic(8, seed=4)
+    with pytest.warns(UserWarning, match="op determinism is already enabled"):
+        OFBENet(max_epochs=1, validation_split=0.0, jit_compile=True).fit(x, y, meta)
+
+
+def test_two_xla_fits_are_identical_in_a_fresh_process() -> None:
+    # a fresh process: the fits above enabled op determinism, which makes Keras turn XLA off
+    code = ("import numpy as np, pandas as pd, tensorflow as tf\n"
+            "from ofbe_model.ofbenet import OFBENet\n"
+            "rng = np.random.default_rng(0)\n"
+            "x = rng.normal(size=(16, 200, 3)).astype(np.float32); y = rng.normal(size=(16, 3))\n"
+            "meta = pd.DataFrame({'device': ['d1'] * 16, 'g_local': 9.81})\n"
+            "est = OFBENet(max_epochs=2, validation_split=0.0, jit_compile=True)\n"
+            "w = [est.fit(x, y, meta).model_.get_weights() for _ in (0, 1)]\n"
+            "from tensorflow.python.framework.config import is_op_determinism_enabled as det\n"
+            "print('XLA-IDENTICAL', all(np.array_equal(a, b) for a, b in zip(*w)), det())\n")
+    env = {**os.environ, "TF_CPP_MIN_LOG_LEVEL": "3"}
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, cwd=ROOT)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert "XLA-IDENTICAL True False" in proc.stdout
+    assert "doesn't support `jit_compile=True`" not in proc.stderr  # XLA really ran
+
+
+# --------------------------------------------------------------------------------------------
+# save and load
+
+
+def test_save_then_load_in_a_fresh_process_predicts_identically(fitted, tmp_path) -> None:
+    est, xt, _, mt = fitted
+    path = est.save(tmp_path / "m" / "fold-0.keras")
+    assert sorted(p.name for p in path.parent.iterdir()) == ["fold-0.keras"]  # no temporary left
+    np.save(tmp_path / "x.npy", xt)
+    code = ("import sys, numpy as np, pandas as pd\n"
+            "from ofbe_model.ofbenet import OFBENet\n"
+            "m = OFBENet.load(sys.argv[1]); x = np.load(sys.argv[2])\n"
+            "meta = pd.DataFrame({'device': ['d1'] * len(x), 'g_local': 9.81})\n"
+            "np.save(sys.argv[3], m.predict(x, meta))\n")
+    env = {**os.environ, "TF_CPP_MIN_LOG_LEVEL": "3"}
+    proc = subprocess.run([sys.executable, "-c", code, str(path), str(tmp_path / "x.npy"),
+                           str(tmp_path / "p.npy")], capture_output=True, text=True, env=env, cwd=ROOT)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert np.array_equal(np.load(tmp_path / "p.npy"), est.predict(xt, mt))
+    loaded = OFBENet.load(path)
+    assert loaded.get_params() == est.get_params() and loaded.history_ == est.history_
+    assert loaded.best_epoch_ == est.best_epoch_ and loaded.window_length_ == T
+    with pytest.raises(EstimatorError, match=".keras"):
+        est.save(tmp_path / "model.h5")
+
+
+@pytest.fixture(scope="module")
+def saved(fitted, tmp_path_factory) -> Path:
+    return fitted[0].save(tmp_path_factory.mktemp("saved") / "good.keras")
+
+
+def _rewrite(src: Path, dest: Path, config: dict) -> Path:
+    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(dest, "w") as zout:
+        for name in zin.namelist():
+            data = json.dumps(config).encode() if name == "config.json" else zin.read(name)
+            zout.writestr(name, data)
+    return dest
+
+
+def test_load_refuses_what_is_not_a_model(tmp_path, saved) -> None:
+    with pytest.raises(EstimatorError, match="no such file"):
+        OFBENet.load(tmp_path / "missing.keras")
+    text = tmp_path / "notes.keras"
+    text.write_text("this is not a model\n")
+    with pytest.raises(EstimatorError, match=r"notes\.keras.*not a zip archive"):
+        OFBENet.load(text)
+    with pytest.raises(EstimatorError, match="ending in"):
+        OFBENet.load(tmp_path / "model.h5")
+    bare = tmp_path / "bare.keras"
+    with zipfile.ZipFile(bare, "w") as zf:
+        zf.writestr("hello.txt", "hi")
+    with pytest.raises(EstimatorError, match="without config.json"):
+        OFBENet.load(bare)
+    config = json.loads(zipfile.ZipFile(saved).read("config.json"))
+    text_cfg = json.dumps(config).replace('"class_name": "Conv1D", "config"',
+                                          '"class_name": "Evil", "config"', 1)
+    text_cfg = text_cfg.replace('"module": "keras.layers", "class_name": "Evil"',
+                                '"module": "os", "class_name": "Evil"', 1)
+    evil = json.loads(text_cfg)
+    assert "Evil" in text_cfg
+    with pytest.raises(EstimatorError, match="Evil"):
+        OFBENet.load(_rewrite(saved, tmp_path / "unknown.keras", evil))
+
+
+def test_load_never_runs_a_lambda(tmp_path) -> None:
+    marker = tmp_path / "executed"
+    fn = eval(f"lambda x: (open({str(marker)!r}, 'w').close(), x)[1]")  # noqa: S307 - the test's payload
+    inputs = keras.Input(shape=(T, 3))
+    out = keras.layers.Dense(3)(keras.layers.GlobalAveragePooling1D()(keras.layers.Lambda(fn)(inputs)))
+    path = tmp_path / "lambda.keras"
+    keras.Model(inputs, out).save(path)
+    marker.unlink()  # building the model ran the lambda; loading must not
+    with pytest.raises(EstimatorError, match="Lambda"):
+        OFBENet.load(path)
+    assert not marker.exists()
+    # and Keras' own safe mode, the second line of defence, refuses it as well
+    with pytest.raises(ValueError):
+        keras.saving.load_model(path, safe_mode=True)
+    assert not marker.exists()
+
+
+def test_load_refuses_a_bad_sidecar(tmp_path, saved) -> None:
+    bad = tmp_path / "sidecar.keras"
+    with zipfile.ZipFile(saved) as zin, zipfile.ZipFile(bad, "w") as zout:
+        for name in zin.namelist():
+            data = zin.read(name)
+            if name == SIDECAR_NAME:
+                doc = json.loads(data)
+                doc["params"]["dropout"] = 7.0
+                data = json.dumps(doc).encode()
+            zout.writestr(name, data)
+    with pytest.raises(EstimatorError, match="dropout"):
+        OFBENet.load(bad)
+
+
+# --------------------------------------------------------------------------------------------
+# ofbe-train
+
+
+def _tiny_dataset(path: Path) -> None:
+    """Rotated-kind dataset, 2 devices × 10 power cycles × 2 windows of T samples, grouped folds."""
+    info = DatasetInfo(name="tiny", campaign="c", kind="rotated", title="t", description="d", labelling="l",
+                       window_length=T, stride=T, fs_hz=150.0,
+                       protocols={"grouped": {"description": "by power cycle", "n_folds": 5, "seed": 0}})
+    rng = np.random.default_rng(0)
+    with atomic_directory(path) as tmp, WindowWriter(tmp, info) as w:
+        for dev in ("d1", "d2"):
+            for i in range(10):
+                b = rng.normal(0.0, 0.3, size=3)
+                meta = pd.DataFrame({
+                    "campaign": ["c"] * 2, "session": [f"s{i}"] * 2, "recording": ["r"] * 2,
+                    "device": [dev] * 2, "power_cycle": [i] * 2, "window_index": [0, 1],
+                    "start_sample": [0, T], **{f"bias_{a}": [b[k]] * 2 for k, a in enumerate("xyz")},
+                    **{f"offset_{a}": [np.nan] * 2 for a in "xyz"},
+                    "gravity_x": [0.0] * 2, "gravity_y": [0.0] * 2, "gravity_z": [1.0] * 2,
+                    "roll_deg": [0.0] * 2, "pitch_deg": [0.0] * 2, "g_local": [G] * 2,
+                    "fs_hz": [150.0] * 2, "label_method": ["level"] * 2, "raw_sha256": ["0" * 64] * 2,
+                    "fold_grouped": [i // 2] * 2})
+                x = b + np.array([0.0, 0.0, G]) + rng.normal(0.0, 0.05, size=(2, T, 3))
+                w.append(x, meta)
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("ds") / "tiny"
+    _tiny_dataset(path)
+    return path
+
+
+def test_ofbe_train_writes_models_curves_and_summary(tiny, tmp_path, capsys) -> None:
+    out = tmp_path / "models"
+    base = [str(tiny), "--protocol", "grouped", "--out", str(out), "--max-epochs", "2"]
+    assert main([*base, "--folds", "0"]) == 0
+    err = capsys.readouterr().err
+    assert "c/d1 grouped fold 0" in err and "c/d2 grouped fold 0" in err
+    assert main([*base, "--folds", "1", "--quiet"]) == 0
+    assert capsys.readouterr().err == ""
+    for dev in ("d1", "d2"):
+        folder = out / dataset_dirname(f"c/{dev}") / "grouped"
+        assert folder.name == "grouped" and folder.parent.name == f"c__{dev}"
+        summary = json.loads((folder / "training.json").read_text())
+        assert summary["dataset"] == f"c/{dev}" and summary["protocol"] == "grouped"
+        assert [f["fold"] for f in summary["folds"]] == [0, 1]  # the second run kept fold 0
+        for entry in summary["folds"]:
+            k = entry["fold"]
+            assert entry["epochs_run"] <= 2 and entry["n_train"] + entry["n_val"] == 16
+            assert entry["n_test"] == 2 and entry["seconds"] > 0 and np.isfinite(entry["best_val_loss"])
+            history = pd.read_csv(folder / f"fold-{k}.history.csv")
+            assert list(history.columns) == ["epoch", "loss", "val_loss", "learning_rate"]
+            assert len(history) == entry["epochs_run"]
+            png = folder / f"fold-{k}.training.png"
+            assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and mpimg.imread(png)[..., :3].std() > 0.05
+            model = OFBENet.load(folder / f"fold-{k}.keras")
+            x = np.zeros((2, T, 3), dtype=np.float32)
+            assert model.predict(x, pd.DataFrame({"device": [dev] * 2, "g_local": G})).shape == (2, 3)
+        assert not [p for p in folder.iterdir() if p.name.startswith(".")]  # no temporaries
+
+
+def test_ofbe_train_usage_errors_exit_2(tiny, tmp_path, capsys, write_text) -> None:
+    base = [str(tiny), "--out", str(tmp_path / "m")]
+    bad = write_text("params.yaml", "train:\n  max_epochs: 2\n  dropout_rate: 0.5\n")
+    assert main([*base, "--protocol", "grouped", "--params", str(bad)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "train.dropout_rate" in err and "an unknown key" in err and len(err.splitlines()) == 1
+    out_of_range = write_text("range.yaml", "train:\n  validation_split: 1.5\n")
+    assert main([*base, "--protocol", "grouped", "--params", str(out_of_range)]) == 2
+    assert "train.validation_split" in capsys.readouterr().err
+    assert main([*base, "--protocol", "paper-rotated"]) == 2
+    assert "expected one of this dataset's protocols (grouped)" in capsys.readouterr().err
+    assert main([*base, "--protocol", "grouped", "--folds", "7"]) == 2
+    assert main([str(tmp_path / "nope"), "--protocol", "grouped"]) == 2
+    assert main([*base, "--protocol", "grouped", "--max-epochs", "0"]) == 2
+    assert "--max-epochs" in capsys.readouterr().err
+    assert not (tmp_path / "m").exists()
+    assert read_params(write_text("ok.yaml", "train:\n  dropout: 0.3\n")).dropout == 0.3
