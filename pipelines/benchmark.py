@@ -8,24 +8,25 @@ from __future__ import annotations
 
 import sys
 
-import yaml
-
+from ofbe_data.pipeline_params import load_params, resolved_params_file, timed
 from ofbe_model.benchmark import main as benchmark_main
 
 
 def main(params_file: str = "params.yaml") -> int:
-    with open(params_file, encoding="utf-8") as fh:
-        run = yaml.safe_load(fh)["benchmark_run"]
-    for protocol, campaigns in run["protocols"].items():
-        args = [*(f"processed/datasets/{c}" for c in campaigns), "--protocol", protocol,
-                "--out", f"reports/benchmark/{protocol}", "--params", params_file, "--models", "models"]
-        for c in campaigns:
-            args += ["--truth", f"raw/{c}/_truth"]
-        code = benchmark_main(args)
-        if code:
-            return code
+    run = load_params(params_file)["benchmark_run"]
+    with resolved_params_file(params_file) as resolved:
+        for protocol, campaigns in run["protocols"].items():
+            args = [*(f"processed/datasets/{c}" for c in campaigns), "--protocol", protocol,
+                    "--out", f"reports/benchmark/{protocol}", "--params", resolved, "--models", "models"]
+            for c in campaigns:
+                args += ["--truth", f"raw/{c}/_truth"]
+            code = benchmark_main(args)
+            if code:
+                return code
     return 0
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    with timed("benchmark"):
+        code = main()
+    sys.exit(code)

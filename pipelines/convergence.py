@@ -9,17 +9,18 @@ from __future__ import annotations
 
 import sys
 
-import yaml
-
+from ofbe_data.pipeline_params import load_params, resolved_params_file, timed
 from ofbe_model.convergence_report import main as convergence_main
 
 
 def main(params_file: str = "params.yaml") -> int:
-    with open(params_file, encoding="utf-8") as fh:
-        run = yaml.safe_load(fh)["convergence_run"]
-    return convergence_main([*(f"raw/{name}" for name in run["campaigns"]), "--out", "reports/convergence",
-                             "--params", params_file, "--jobs", str(run["jobs"])])
+    run = load_params(params_file)["convergence_run"]
+    with resolved_params_file(params_file) as resolved:
+        return convergence_main([*(f"raw/{name}" for name in run["campaigns"]), "--out",
+                                 "reports/convergence", "--params", resolved, "--jobs", str(run["jobs"])])
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    with timed("convergence"):
+        code = main()
+    sys.exit(code)

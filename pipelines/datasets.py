@@ -8,22 +8,23 @@ from __future__ import annotations
 
 import sys
 
-import yaml
-
 from ofbe_data.dataset_cli import main as dataset_main
+from ofbe_data.pipeline_params import load_params, resolved_params_file, timed
 
 
 def main(params_file: str = "params.yaml") -> int:
-    with open(params_file, encoding="utf-8") as fh:
-        run = yaml.safe_load(fh)["dataset_run"]
-    for name in run["campaigns"]:
-        code = dataset_main(["build", f"processed/labels/{name}", "--raw", f"raw/{name}",
-                             "--out", f"processed/datasets/{name}", "--params", params_file,
-                             "--jobs", str(run["jobs"]), "--force"])
-        if code:
-            return code
+    run = load_params(params_file)["dataset_run"]
+    with resolved_params_file(params_file) as resolved:
+        for name in run["campaigns"]:
+            code = dataset_main(["build", f"processed/labels/{name}", "--raw", f"raw/{name}",
+                                 "--out", f"processed/datasets/{name}", "--params", resolved,
+                                 "--jobs", str(run["jobs"]), "--force"])
+            if code:
+                return code
     return 0
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    with timed("datasets"):
+        code = main()
+    sys.exit(code)

@@ -9,18 +9,19 @@ from __future__ import annotations
 
 import sys
 
-import yaml
-
 from ofbe_data.label_cli import main as label_main
+from ofbe_data.pipeline_params import load_params, resolved_params_file, timed
 
 
 def main(params_file: str = "params.yaml") -> int:
-    with open(params_file, encoding="utf-8") as fh:
-        run = yaml.safe_load(fh)["label_run"]
+    run = load_params(params_file)["label_run"]
     extra = ["--min-samples-from", run["min_samples_from"]] if run.get("min_samples_from") else []
-    return label_main([*(f"raw/{name}" for name in run["campaigns"]), "--out", "processed/labels",
-                       "--params", params_file, "--jobs", str(run["jobs"]), *extra])
+    with resolved_params_file(params_file) as resolved:
+        return label_main([*(f"raw/{name}" for name in run["campaigns"]), "--out", "processed/labels",
+                           "--params", resolved, "--jobs", str(run["jobs"]), *extra])
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    with timed("label"):
+        code = main()
+    sys.exit(code)

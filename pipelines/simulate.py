@@ -1,6 +1,7 @@
 """DVC stage ``simulate``: write the default simulated campaigns into raw/.
 
-Reads ``simulate`` from params.yaml; all logic lives in :mod:`ofbe_data.simulator`.
+Reads ``simulate`` from params.yaml (with its profile applied,
+:mod:`ofbe_data.pipeline_params`); all logic lives in :mod:`ofbe_data.simulator`.
 """
 
 from __future__ import annotations
@@ -8,18 +9,17 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-import yaml
-
 from ofbe_data.errors import OfbeError
-from ofbe_data.simulator import simulate_campaign
+from ofbe_data.pipeline_params import load_params, timed
+from ofbe_data.simulator import load_config, simulate_campaign
 
 
 def main(params_file: str = "params.yaml") -> int:
-    with open(params_file, encoding="utf-8") as fh:
-        params = yaml.safe_load(fh)["simulate"]
     try:
+        params = load_params(params_file)["simulate"]
         for name, entry in params["campaigns"].items():
-            result = simulate_campaign(entry["profile"], Path("raw") / name, seed=entry["seed"],
+            config = load_config(entry["profile"], entry.get("overrides"))
+            result = simulate_campaign(config, Path("raw") / name, seed=entry["seed"],
                                        jobs=params["jobs"], force=True)
             print(f"{result.folder}: {result.sessions} sessions, {result.files} files, "
                   f"{result.bytes / 1e6:.1f} MB")
@@ -30,4 +30,6 @@ def main(params_file: str = "params.yaml") -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    with timed("simulate"):
+        code = main()
+    sys.exit(code)

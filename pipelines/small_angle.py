@@ -7,17 +7,17 @@ from __future__ import annotations
 
 import sys
 
-import yaml
-
+from ofbe_data.pipeline_params import load_params, timed
 from ofbe_model.small_angle_report import main as small_angle_main
 
 
 def main(params_file: str = "params.yaml") -> int:
-    with open(params_file, encoding="utf-8") as fh:
-        p = yaml.safe_load(fh)["small_angle"]
+    p = load_params(params_file)["small_angle"]
     return small_angle_main(["--out", "reports/small_angle", "--range-deg", str(p["range_deg"]),
                              "--step-deg", str(p["step_deg"]), "--limit-mg", str(p["limit_mg"])])
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    with timed("small_angle"):
+        code = main()
+    sys.exit(code)

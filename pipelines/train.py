@@ -8,22 +8,23 @@ from __future__ import annotations
 
 import sys
 
-import yaml
-
+from ofbe_data.pipeline_params import load_params, resolved_params_file, timed
 from ofbe_model.train_cli import main as train_main
 
 
 def main(params_file: str = "params.yaml") -> int:
-    with open(params_file, encoding="utf-8") as fh:
-        run = yaml.safe_load(fh)["benchmark_run"]
-    for protocol, campaigns in run["protocols"].items():
-        for name in campaigns:
-            code = train_main([f"processed/datasets/{name}", "--protocol", protocol, "--out", "models",
-                               "--params", params_file])
-            if code:
-                return code
+    run = load_params(params_file)["benchmark_run"]
+    with resolved_params_file(params_file) as resolved:
+        for protocol, campaigns in run["protocols"].items():
+            for name in campaigns:
+                code = train_main([f"processed/datasets/{name}", "--protocol", protocol, "--out", "models",
+                                   "--params", resolved])
+                if code:
+                    return code
     return 0
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    with timed("train"):
+        code = main()
+    sys.exit(code)

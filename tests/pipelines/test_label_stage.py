@@ -73,7 +73,8 @@ def _imported_files(entry: str) -> set[str]:
                                           ("label", "pipelines/label.py"),
                                           ("datasets", "pipelines/datasets.py"),
                                           ("train", "pipelines/train.py"),
-                                          ("benchmark", "pipelines/benchmark.py")])
+                                          ("benchmark", "pipelines/benchmark.py"),
+                                          ("index", "pipelines/index.py")])
 def test_stages_depend_on_every_module_they_run(stage, entry):
     deps = yaml.safe_load((ROOT / "dvc.yaml").read_text())["stages"][stage]["deps"]
     assert entry in deps
@@ -125,3 +126,29 @@ def test_datasets_stage_builds_each_campaign(tmp_path, monkeypatch):
     summary = verify_dataset(tmp_path / "processed" / "datasets" / "ga")
     assert summary["n_recordings"] == 20 and summary["window_length"] == 500
     assert sorted(summary["protocols"]) == ["grouped", "paper-gravity"]
+
+
+def test_profiles_merge_over_params(tmp_path):
+    from ofbe_data.errors import ConfigError
+    from ofbe_data.pipeline_params import load_params, merge, resolved_params_file
+
+    assert merge({"a": {"b": 1, "c": [1]}, "d": 2}, {"a": {"c": [2]}, "e": 3}) == {
+        "a": {"b": 1, "c": [2]}, "d": 2, "e": 3}
+    paper = load_params(ROOT / "params.yaml")
+    assert paper["profile"] == "paper" and paper["dataset"]["window_length"] == 3000
+    (tmp_path / "pipelines" / "profiles").mkdir(parents=True)
+    (tmp_path / "pipelines" / "profiles" / "tiny.yaml").write_text(
+        (ROOT / "pipelines" / "profiles" / "tiny.yaml").read_text())
+    doc = yaml.safe_load((ROOT / "params.yaml").read_text())
+    doc["profile"] = "tiny"
+    (tmp_path / "params.yaml").write_text(yaml.safe_dump(doc))
+    tiny = load_params(tmp_path / "params.yaml")
+    assert tiny["dataset"]["window_length"] == 1000 and tiny["dataset"]["n_folds"] == 5
+    assert tiny["simulate"]["campaigns"]["rotated"]["overrides"]["sessions"] == 16
+    with resolved_params_file(tmp_path / "params.yaml") as path:
+        assert yaml.safe_load(open(path))["label"]["min_samples"] == 2000
+    assert not Path(path).exists()
+    doc["profile"] = "huge"
+    (tmp_path / "params.yaml").write_text(yaml.safe_dump(doc))
+    with pytest.raises(ConfigError, match="profile: expected paper or one of tiny, found 'huge'"):
+        load_params(tmp_path / "params.yaml")

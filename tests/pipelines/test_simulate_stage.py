@@ -30,4 +30,5 @@ def test_repository_params_and_dvc_stage_agree():
     params = yaml.safe_load((root / "params.yaml").read_text())["simulate"]
     stage = yaml.safe_load((root / "dvc.yaml").read_text())["stages"]["simulate"]
     assert sorted(stage["outs"]) == sorted(f"raw/{name}" for name in params["campaigns"])
-    assert {e["profile"] for e in params["campaigns"].values()} == {"gravity-aligned", "rotated"}
+    assert {e["profile"] for e in params["campaigns"].values()} == {"gravity-aligned", "rotated",
+                                                                    "multi-position"}

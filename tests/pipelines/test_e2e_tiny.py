@@ -1,0 +1,108 @@
+"""End to end: the whole DVC pipeline on the `tiny` profile in a copy of the repository.
+
+Checks that ``dvc repro`` runs every stage, that the outputs have their schemas, that a
+second ``dvc repro`` is a no-op, and that forcing the whole pipeline again gives
+byte-identical labels and datasets and identical benchmark metrics. About four minutes.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pyarrow.parquet as pq
+import pytest
+import yaml
+
+from ofbe_data.datastore import SCHEMA_VERSION, verify_dataset
+from ofbe_data.labelstore import LABEL_SCHEMA
+
+ROOT = Path(__file__).resolve().parents[2]
+STAGES = ("simulate", "convergence", "small_angle", "label", "datasets", "train", "benchmark", "index")
+
+
+def _run(cwd: Path, *args: str) -> str:
+    done = subprocess.run(list(args), cwd=cwd, capture_output=True, text=True)
+    assert done.returncode == 0, f"{' '.join(args)} failed:\n{done.stdout[-3000:]}\n{done.stderr[-3000:]}"
+    return done.stdout + done.stderr
+
+
+def _copy_repository(dest: Path) -> None:
+    listed = _run(ROOT, "git", "ls-files", "-z", "--cached", "--others", "--exclude-standard")
+    for rel in filter(None, listed.split("\0")):
+        src = ROOT / rel
+        if src.is_file():
+            (dest / rel).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(src, dest / rel)
+
+
+def _locked_outs(repo: Path) -> dict[str, str]:
+    lock = yaml.safe_load((repo / "dvc.lock").read_text())
+    return {o["path"]: o["md5"] for s in lock["stages"].values() for o in s.get("outs", [])}
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory) -> Path:
+    if shutil.which("git") is None or not (ROOT / ".git").exists():
+        pytest.skip("needs git and a git checkout to copy the repository")
+    repo = tmp_path_factory.mktemp("e2e") / "repo"
+    repo.mkdir()
+    _copy_repository(repo)
+    params = (repo / "params.yaml").read_text()
+    assert "\nprofile: paper" in params
+    (repo / "params.yaml").write_text(params.replace("\nprofile: paper", "\nprofile: tiny", 1))
+    _run(repo, "git", "init", "-q")
+    _run(repo, "git", "add", "-A")
+    _run(repo, "git", "-c", "user.email=ci@ofbe", "-c", "user.name=ci", "commit", "-qm", "tiny")
+    _run(repo, sys.executable, "-m", "dvc", "repro")
+    return repo
+
+
+def test_every_stage_ran_and_outputs_have_their_schemas(tiny) -> None:
+    lock = yaml.safe_load((tiny / "dvc.lock").read_text())
+    assert set(STAGES) <= set(lock["stages"])
+    for campaign in ("gravity-aligned", "rotated", "multi-position"):
+        files = sorted((tiny / "processed" / "labels" / campaign).glob("*.parquet"))
+        assert files, campaign
+        schema = pq.read_schema(files[0])
+        assert schema.names == LABEL_SCHEMA.names and schema.types == LABEL_SCHEMA.types
+    for campaign in ("gravity-aligned", "rotated"):
+        summary = verify_dataset(tiny / "processed" / "datasets" / campaign)
+        assert summary["schema_version"] == SCHEMA_VERSION and summary["window_length"] == 1000
+    conv = json.loads((tiny / "reports" / "convergence" / "convergence.json").read_text())
+    assert conv["recommended_label_start"] > 0
+    small = json.loads((tiny / "reports" / "small_angle" / "small_angle.json").read_text())
+    assert abs(small["threshold_deg"]["pitch"] - 2.866) < 0.005
+    for protocol in ("paper-gravity", "paper-rotated", "grouped"):
+        doc = json.loads((tiny / "reports" / "benchmark" / protocol / "benchmark.json").read_text())
+        assert doc["protocol"] == protocol
+        for ds in doc["datasets"].values():
+            assert {"ofbenet", "ls-trf", "won2009", "oracle"} <= set(ds["methods"])
+            assert len(ds["methods"]["ofbenet"]["rmse_folds"]) == 5
+    index = (tiny / "reports" / "index.md").read_text()
+    assert index.count("| Dataset | Sensors | Method |") == 3
+    assert "Label fidelity" in index and "convergence_histogram.png" in index and "small_angle.png" in index
+    assert "| **total** |" in index
+
+
+def test_second_repro_is_a_no_op(tiny) -> None:
+    before = (tiny / "dvc.lock").read_bytes()
+    out = _run(tiny, sys.executable, "-m", "dvc", "repro")
+    assert "Data and pipelines are up to date" in out
+    assert "Running stage" not in out
+    assert (tiny / "dvc.lock").read_bytes() == before
+
+
+def test_forced_rerun_is_reproducible(tiny) -> None:
+    outs = _locked_outs(tiny)
+    metrics = {p: (tiny / "reports" / "benchmark" / p / "benchmark.json").read_bytes()
+               for p in ("paper-gravity", "paper-rotated", "grouped")}
+    _run(tiny, sys.executable, "-m", "dvc", "repro", "--force")
+    again = _locked_outs(tiny)
+    for path in ("raw/gravity-aligned", "raw/rotated", "processed/labels", "processed/datasets"):
+        assert again[path] == outs[path], path
+    for p, data in metrics.items():
+        assert (tiny / "reports" / "benchmark" / p / "benchmark.json").read_bytes() == data, p
