@@ -123,3 +123,21 @@ def test_predict_with_a_saved_gravity_prior(rotated, tmp_path, capsys) -> None:
     assert "model.json" in capsys.readouterr().err
     with pytest.raises(EstimatorError, match="expected a saved OFBENet"):
         predict_cli.load_model(tmp_path / "model.pkl")
+
+
+def test_predict_on_a_bare_file(rotated, tmp_path, capsys) -> None:
+    from ofbe_data import load_dataset
+
+    tmp, ds = rotated
+    data = load_dataset(ds)
+    path = tmp_path / "gp.json"
+    GravityPrior().fit(data.X, data.y, data.meta).save(path)
+    bare = tmp / "raw" / "rot-pc001" / "rec-01" / "sparkfun-1.csv"
+    assert predict_cli.main([str(path), str(bare), "--device", "sparkfun-1", "--g-local", "9.80",
+                             "--window-length", str(T)]) == 0
+    (r,) = json.loads(capsys.readouterr().out)["results"]
+    assert r["device"] == "sparkfun-1" and r["g_local"] == 9.80 and len(r["bias_m_s2"]) == 3
+    # a window longer than the still run is reported, not crashed on
+    assert predict_cli.main([str(path), str(bare), "--window-length", "100000"]) == 1
+    err = capsys.readouterr().err
+    assert "still samples, at least 100000 needed" in err and "sparkfun-1.csv" in err
