@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import os
 import tempfile
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -23,20 +23,14 @@ from typing import Any
 import yaml
 
 from ofbe_data.errors import ConfigError
+from ofbe_data.typedconfig import deep_merge
 
 DEFAULT_PROFILE = "paper"
 PROFILE_DIR = Path("pipelines") / "profiles"
 
 
-def merge(base: Mapping[str, Any], over: Mapping[str, Any]) -> dict[str, Any]:
-    """``base`` with ``over`` merged in: nested mappings key by key, other values replaced."""
-    out = dict(base)
-    for key, value in over.items():
-        if isinstance(value, Mapping) and isinstance(out.get(key), Mapping):
-            out[key] = merge(out[key], value)
-        else:
-            out[key] = value
-    return out
+merge = deep_merge
+"""Profile overrides merge like simulator overrides (:func:`ofbe_data.typedconfig.deep_merge`)."""
 
 
 def _read(path: Path) -> dict[str, Any]:

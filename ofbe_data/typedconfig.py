@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 import types
 import typing
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -136,3 +137,17 @@ def read_section(path: str | Path, section: str, whole_if_missing: bool = False)
     if not isinstance(data, dict):
         raise ConfigError(path, section, f"a mapping of {section} parameters", type(data).__name__)
     return data
+
+
+def deep_merge(base: Mapping[str, Any], over: Mapping[str, Any]) -> dict[str, Any]:
+    """``base`` with ``over`` merged in: nested mappings key by key, other values replaced.
+
+    Used for a configuration's overrides (simulator profiles, pipeline profiles).
+    """
+    out = dict(base)
+    for key, value in over.items():
+        if isinstance(value, Mapping) and isinstance(out.get(key), Mapping):
+            out[key] = deep_merge(out[key], value)
+        else:
+            out[key] = value
+    return out

@@ -192,9 +192,6 @@ class LevelMean(Estimator):
     name: ClassVar[str] = "level-mean"
     needs_fit: ClassVar[bool] = False
 
-    def __init__(self) -> None:
-        pass
-
     def predict(self, windows: np.ndarray, meta: pd.DataFrame) -> np.ndarray:
         """Bias estimates, (N, 3) m/s²."""
         check_inputs(windows, meta)
@@ -509,9 +506,6 @@ class PriorMean(Estimator):
 
     name: ClassVar[str] = "prior-mean"
     needs_fit: ClassVar[bool] = True
-
-    def __init__(self) -> None:
-        pass
 
     def fit(self, windows: np.ndarray, labels: np.ndarray, meta: pd.DataFrame) -> PriorMean:
         """Learn the per-device label means and standard deviations."""

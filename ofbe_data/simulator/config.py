@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from ofbe_data.errors import ConfigError
-from ofbe_data.typedconfig import from_plain
+from ofbe_data.typedconfig import deep_merge, from_plain
 from ofbe_data.yamlio import YamlDocument, YamlProblem, read_yaml
 
 Range = tuple[float, float]
@@ -179,16 +179,6 @@ def builtin_profiles() -> list[str]:
     return sorted(p.name[:-5] for p in files if p.name.endswith(".yaml"))
 
 
-def _deep_merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
-    out = dict(base)
-    for key, value in over.items():
-        if isinstance(value, dict) and isinstance(out.get(key), dict):
-            out[key] = _deep_merge(out[key], value)
-        else:
-            out[key] = value
-    return out
-
-
 def _load_raw(name_or_path: str | Path, chain: tuple[str, ...] = ()) -> dict[str, Any]:
     """Resolve a profile name or YAML file into one plain mapping (bases merged)."""
     text_source = str(name_or_path)
@@ -222,7 +212,7 @@ def _load_raw(name_or_path: str | Path, chain: tuple[str, ...] = ()) -> dict[str
         raise ConfigError(text_source, "profile", "a profile name or file", repr(base))
     if not Path(base).is_absolute() and Path(base).suffix in (".yaml", ".yml") and path.is_file():
         base = str(path.parent / base)
-    return _deep_merge(_load_raw(base, (*chain, text_source)), data)
+    return deep_merge(_load_raw(base, (*chain, text_source)), data)
 
 
 def _check(cfg: SimConfig, source: str) -> SimConfig:
@@ -286,7 +276,7 @@ def load_config(name_or_path: str | Path, overrides: dict[str, Any] | None = Non
     """
     data = _load_raw(name_or_path)
     if overrides:
-        data = _deep_merge(data, overrides)
+        data = deep_merge(data, overrides)
     source = str(name_or_path)
     duts = data.get("duts")
     if isinstance(duts, dict):  # allow {id: {...}} as well as a list
