@@ -11,17 +11,15 @@ import argparse
 import os
 import sys
 from collections.abc import Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
-
-from tqdm import tqdm
 
 from ofbe_data.convergence import read_recommendation
 from ofbe_data.errors import OfbeError
 from ofbe_data.labels import LabelParams, SessionLabels, label_params_from, label_session, read_label_section
 from ofbe_data.labelstore import fit_campaign, write_campaign_fit, write_session
 from ofbe_data.manifest import MANIFEST_NAME
+from ofbe_data.parallel import map_progress
 
 
 class UsageError(OfbeError):
@@ -105,19 +103,7 @@ def label_sessions(folders: Sequence[Path], params: LabelParams, out_dir: Path, 
         In the order of ``folders``.
     """
     work = [(f, params) for f in folders]
-    bar = tqdm(total=len(work), desc="labelling", unit="session", disable=not progress or len(work) < 2,
-               file=sys.stderr)
-    outcomes: list[Outcome] = []
-    if jobs > 1 and len(work) > 1:
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
-            for o in pool.map(_run_one, work, chunksize=1):
-                outcomes.append(o)
-                bar.update()
-    else:
-        for w in work:
-            outcomes.append(_run_one(w))
-            bar.update()
-    bar.close()
+    outcomes = map_progress(_run_one, work, jobs=jobs, desc="labelling", unit="session", progress=progress)
     campaigns: dict[str, list[SessionLabels]] = {}
     for o in outcomes:
         if o.labels is not None:

@@ -21,14 +21,12 @@ import json
 import os
 import sys
 from collections.abc import Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pandas as pd
-from tqdm import tqdm
 
 from ofbe_data import __version__
 from ofbe_data.allan import AllanResult, allan_deviation, combine, white_noise_level
@@ -45,6 +43,7 @@ from ofbe_data.convergence import (
 from ofbe_data.errors import ConfigError, OfbeError
 from ofbe_data.label_cli import expand_sessions
 from ofbe_data.labels import LabelParams, label_params_from, label_session
+from ofbe_data.parallel import map_progress
 from ofbe_data.typedconfig import from_plain, read_section
 from ofbe_data.windows import load_segments
 from ofbe_model.figures import new_figure, save_png
@@ -148,19 +147,8 @@ def analyse(folders: Sequence[Path], params: LabelParams, jobs: int = 1, progres
     """
     params = dataclasses.replace(params, min_samples=2)
     work = [(f, params) for f in folders]
-    bar = tqdm(total=len(work), desc="convergence", unit="session", file=sys.stderr,
-               disable=not progress or len(work) < 2)
-    results = []
-    if jobs > 1 and len(work) > 1:
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
-            for res in pool.map(_analyse_session, work, chunksize=1):
-                results.append(res)
-                bar.update()
-    else:
-        for w in work:
-            results.append(_analyse_session(w))
-            bar.update()
-    bar.close()
+    results = map_progress(_analyse_session, work, jobs=jobs, desc="convergence", unit="session",
+                           progress=progress)
     rows: list[dict[str, Any]] = []
     per_device: dict[str, list[AllanResult]] = {}
     folder_of: dict[tuple[str, str], Path] = {}
