@@ -79,8 +79,8 @@ class DeviceFit:
             "device": self.device, "n_recordings": self.n_recordings,
             "n_power_cycles": self.n_power_cycles, "determined": self.determined,
             "reason": self.reason,
-            "A": None if self.A is None else np.round(self.A, 12).tolist(),
-            "offsets": {str(k): np.round(v, 12).tolist() for k, v in sorted(self.offsets.items())},
+            "A": None if self.A is None else self.A.tolist(),
+            "offsets": {str(k): v.tolist() for k, v in sorted(self.offsets.items())},
             "condition": self.condition if np.isfinite(self.condition) else None,
             "residual_rms_mps2": self.residual_rms if np.isfinite(self.residual_rms) else None,
         }

@@ -24,6 +24,7 @@ from ofbe_data import __version__
 from ofbe_data.atomic import write_bytes_atomic
 from ofbe_data.campaign_fit import DeviceFit, fit_device
 from ofbe_data.labels import REJECTIONS_FORMAT, LabelParams, SessionLabels, provenance
+from ofbe_data.precision import ACCEL_DECIMALS, round_floats, round_label_value
 
 CAMPAIGN_FIT_FORMAT = "ofbe-campaign-fit/1"
 
@@ -88,7 +89,7 @@ def fit_campaign(sessions: Sequence[SessionLabels], params: LabelParams) -> dict
 def labels_table(labels: SessionLabels, params: LabelParams) -> pa.Table:
     """The session's rows as an Arrow table in :data:`LABEL_SCHEMA`, provenance attached."""
     names = LABEL_SCHEMA.names
-    data = {n: [r.get(n) for r in labels.rows] for n in names}
+    data = {n: [round_label_value(n, r.get(n)) for r in labels.rows] for n in names}
     table = pa.Table.from_pydict(data, schema=LABEL_SCHEMA)
     meta = {b"ofbe": json.dumps(provenance(labels, params), sort_keys=True).encode()}
     return table.replace_schema_metadata(meta)
@@ -144,7 +145,7 @@ def write_campaign_fit(campaign: str, fits: dict[str, DeviceFit], sessions: Sequ
            "sessions": sorted(s.manifest.session for s in sessions), "note": note,
            "parameters": dataclasses.asdict(params.campaign_fit),
            "devices": {d: f.to_dict() for d, f in sorted(fits.items())}}
-    write_bytes_atomic(path, _json_bytes(doc))
+    write_bytes_atomic(path, _json_bytes(round_floats(doc, ACCEL_DECIMALS, frozenset({"condition"}))))
     return path
 
 

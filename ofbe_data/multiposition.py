@@ -228,8 +228,17 @@ def span_condition(means: np.ndarray) -> float:
     return condition_number(means - means.mean(axis=0))
 
 
+START_DECIMALS = 6
+"""Decimal places (m/s², 1e-6 ≈ 0.1 µg) to which the linear start of the pose fit is rounded.
+
+The nonlinear fit stops within its tolerances, so its result moves by ~1e-9 m/s² with the
+start; the linear start comes from LAPACK, whose last bits depend on the BLAS kernel. Rounded,
+the start is the same on every machine and so is the fit (and the label file's bytes).
+"""
+
+
 def _start(means: np.ndarray, g: float, model: str) -> np.ndarray:
-    b0 = sphere_centre(means, g)
+    b0 = np.round(sphere_centre(means, g), START_DECIMALS)
     if model == "offset":
         return b0
     ratio = float(np.mean(np.linalg.norm(means - b0, axis=1))) / g

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ofbe_data.linalg3 import dot3, mul3, norm3
+
 VERTICAL = np.array([0.0, 0.0, 1.0])
 """Unit specific-force direction of a level, z-up sensor."""
 
@@ -15,7 +17,7 @@ VERTICAL = np.array([0.0, 0.0, 1.0])
 def unit(v: np.ndarray) -> np.ndarray:
     """``v / ‖v‖`` for a (3,) vector; raises ``ValueError`` for a zero vector."""
     v = np.asarray(v, dtype=np.float64)
-    n = float(np.linalg.norm(v))
+    n = float(norm3(v))
     if not n > 0.0:
         raise ValueError(f"cannot normalise a zero-length vector {v.tolist()}")
     return v / n
@@ -43,7 +45,7 @@ def rodrigues(axis: np.ndarray, angle_rad: float) -> np.ndarray:
     ndarray, shape (3, 3)
     """
     K = skew(unit(axis))
-    return np.eye(3) + np.sin(angle_rad) * K + (1.0 - np.cos(angle_rad)) * (K @ K)
+    return np.eye(3) + np.sin(angle_rad) * K + (1.0 - np.cos(angle_rad)) * mul3(K, K)
 
 
 def rotation_to_vertical(u: np.ndarray) -> np.ndarray:
@@ -64,8 +66,8 @@ def rotation_to_vertical(u: np.ndarray) -> np.ndarray:
     """
     u = unit(u)
     cross = np.cross(u, VERTICAL)
-    s = float(np.linalg.norm(cross))
-    c = float(np.clip(u @ VERTICAL, -1.0, 1.0))
+    s = float(norm3(cross))
+    c = float(np.clip(dot3(u, VERTICAL), -1.0, 1.0))
     if s < 1e-12:
         return np.eye(3) if c > 0 else rodrigues(np.array([1.0, 0.0, 0.0]), np.pi)
     return rodrigues(cross / s, float(np.arctan2(s, c)))
@@ -163,6 +165,6 @@ def rodrigues_label(dut_mean: np.ndarray, ref_mean: np.ndarray, reference_to_sen
     """
     N = np.asarray(reference_to_sensor, dtype=np.float64)
     R = rotation_to_vertical(ref_mean)
-    levelled = R @ N.T @ np.asarray(dut_mean, dtype=np.float64)
-    bias = N @ R.T @ (levelled - g * VERTICAL)
-    return bias, N @ unit(ref_mean)
+    levelled = mul3(R, mul3(N.T, np.asarray(dut_mean, dtype=np.float64)))
+    bias = mul3(N, mul3(R.T, levelled - g * VERTICAL))
+    return bias, mul3(N, unit(ref_mean))

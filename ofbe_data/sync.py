@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ofbe_data.linalg3 import mul3
 from ofbe_data.recording import Recording
 
 
@@ -250,8 +251,9 @@ def _lag_at(t_dut: np.ndarray, x_dut: np.ndarray, t_ref: np.ndarray, x_ref: np.n
         # mean removal turns into zero correlation
         xr = np.interp(tq, tr, x_ref[lo:hi, c]) if tr.size else np.zeros_like(tq)
         xr -= xr.mean(axis=1, keepdims=True)
-        score += xr @ xd[:, c]
-        energy_r += np.einsum("ij,ij->i", xr, xr)
+        # elementwise products and numpy's own sums, not BLAS: the same last bits on every machine
+        score += np.sum(xr * xd[:, c], axis=1)
+        energy_r += np.sum(xr * xr, axis=1)
     score = score / np.sqrt(energy_r * float(np.sum(xd * xd)) + 1e-30)
     k = int(np.argmax(score))
     lag = float(lags[k])
@@ -261,6 +263,30 @@ def _lag_at(t_dut: np.ndarray, x_dut: np.ndarray, t_ref: np.ndarray, x_ref: np.n
         if den < 0:
             lag += 0.5 * (y0 - y2) / den * float(lags[1] - lags[0])
     return lag, float(score[k])
+
+
+def fit_line(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
+    """Least-squares line ``y ≈ intercept + slope·x`` in closed form about the mean of x.
+
+    Written out instead of ``np.linalg.lstsq`` so that the result (which is written into
+    every label) does not depend on the machine's BLAS kernel, and centred so that large
+    times do not cost precision.
+
+    Parameters
+    ----------
+    x, y
+        (K,) points, K ≥ 2 with at least two distinct x.
+
+    Returns
+    -------
+    intercept, slope
+    """
+    x = np.asarray(x, dtype=np.float64)
+    y = np.asarray(y, dtype=np.float64)
+    xm, ym = float(np.mean(x)), float(np.mean(y))
+    dx = x - xm
+    slope = float(np.sum(dx * (y - ym)) / np.sum(dx * dx))
+    return ym - slope * xm, slope
 
 
 def _grid(half_range: float, step: float) -> np.ndarray:
@@ -312,7 +338,7 @@ def synchronise(dut: Recording, ref: Recording, reference_to_sensor: np.ndarray 
     coarse = coarse_offset(dut, ref)
     ref_sig = tap_signals(ref, params) if ref_signals is None else ref_signals
     dut_sig = tap_signals(dut, params)
-    hp_ref = ref_sig.highpassed @ N.T  # the reference's signed signal in DUT axes
+    hp_ref = mul3(ref_sig.highpassed, N.T)  # the reference's signed signal in DUT axes
     hp_dut = dut_sig.highpassed
     e_ref = ref_sig.envelope[:, None]
     e_dut = dut_sig.envelope[:, None]
@@ -353,8 +379,7 @@ def synchronise(dut: Recording, ref: Recording, reference_to_sensor: np.ndarray 
     # each matched tap gives a point (t_ref, t_dut) on the clock line t_dut = offset + slope·t_ref
     x = taps_ref[ok]
     y = start + lag_arr[ok] + x
-    design = np.stack([np.ones_like(x), x], axis=1)
-    (offset, slope), *_ = np.linalg.lstsq(design, y, rcond=None)
+    offset, slope = fit_line(x, y)
     drift = float(slope - 1.0)
     if abs(drift) * 1e6 > params.max_drift_ppm:
         return fallback(f"tap fit gave an implausible drift of {drift * 1e6:.0f} ppm")

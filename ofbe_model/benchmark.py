@@ -7,13 +7,15 @@ recording). The predictions table (one row per method and test signal) feeds
 :mod:`ofbe_model.benchmark_report`: ``benchmark.json``, the paper's Table 3 as
 ``benchmark.md``, per-signal errors, paired t-tests, the oracle ratio and the figures.
 
-OFBENet is either loaded per fold from ``ofbe-train``'s models (``--models``), or trained
-here. The oracle reads the simulator's truth files (``--truth``) and nothing else does.
+OFBENet is either loaded per fold from ``ofbe-train``'s models (``--models``: every training
+seed on record, one predictions row per seed and signal, the report averages over seeds), or
+trained here (one seed). The oracle reads the simulator's truth files (``--truth``) and nothing else does.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
 from collections.abc import Sequence
@@ -78,14 +80,40 @@ def benchmark_params_from(data: dict[str, Any] | None, source: str) -> Benchmark
     return BenchmarkParams(params.methods, params.baselines, merged)
 
 
-def model_path(models_dir: Path, dataset: str, protocol: str, fold: int) -> Path:
-    """Where ``ofbe-train`` saves the OFBENet of one benchmark dataset, protocol and fold."""
-    return models_dir / dataset.replace("/", "__") / protocol / f"fold-{fold}.keras"
+def model_folder(models_dir: Path, dataset: str, protocol: str) -> Path:
+    """Where ``ofbe-train`` saves the OFBENets of one benchmark dataset and protocol."""
+    return models_dir / dataset.replace("/", "__") / protocol
 
 
-def _estimator(method: str, split: Split, protocol: str, params: BenchmarkParams, models_dir: Path | None,
-               truth_dir: Path | None) -> tuple[Estimator, bool]:
-    """The estimator of one method for one fold, and whether it is already fitted (a saved model)."""
+def model_path(models_dir: Path, dataset: str, protocol: str, fold: int, seed: int) -> Path:
+    """Where ``ofbe-train`` saves the OFBENet of one benchmark dataset, protocol, fold and seed."""
+    return model_folder(models_dir, dataset, protocol) / f"fold-{fold}.seed-{seed}.keras"
+
+
+def trained_seeds(models_dir: Path, dataset: str, protocol: str, fold: int) -> list[int]:
+    """The training seeds on record for one fold (``training.json`` of ``ofbe-train``).
+
+    Raises
+    ------
+    EstimatorError
+        No readable ``training.json``, or no model of this fold in it.
+    """
+    path = model_folder(models_dir, dataset, protocol) / "training.json"
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+        seeds = sorted({int(f["seed"]) for f in doc["folds"] if int(f["fold"]) == fold})
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise EstimatorError(f"{path}: expected ofbe-train's summary with a seed per fold, "
+                             f"found {type(exc).__name__}: {exc} (run ofbe-train)") from None
+    if not seeds:
+        raise EstimatorError(f"{path}: expected a model of fold {fold}, found none (run ofbe-train)")
+    return seeds
+
+
+def _estimators(method: str, split: Split, protocol: str, params: BenchmarkParams, models_dir: Path | None,
+                truth_dir: Path | None) -> list[tuple[int, Estimator, bool]]:
+    """(seed, estimator, already fitted) of one method for one fold: one per training seed for
+    OFBENet loaded from ``ofbe-train``'s models, a single one (seed 0) otherwise."""
     kwargs = dict(params.estimator_params.get(method, {}))
     name = str(kwargs.pop("estimator", method))
     if name == "oracle":
@@ -95,8 +123,9 @@ def _estimator(method: str, split: Split, protocol: str, params: BenchmarkParams
     if name == "ofbenet" and models_dir is not None:
         from ofbe_model.ofbenet import OFBENet
 
-        return OFBENet.load(model_path(models_dir, split.dataset, protocol, split.fold)), True
-    return make_estimator(name, **kwargs), False
+        return [(seed, OFBENet.load(model_path(models_dir, split.dataset, protocol, split.fold, seed)), True)
+                for seed in trained_seeds(models_dir, split.dataset, protocol, split.fold)]
+    return [(0, make_estimator(name, **kwargs), False)]
 
 
 def run_protocol(dataset: str | Path, protocol: str, params: BenchmarkParams | None = None, *,
@@ -143,22 +172,22 @@ def run_protocol(dataset: str | Path, protocol: str, params: BenchmarkParams | N
         y_test = ds.y[split.test]
         for method in params.methods:
             t0 = time.perf_counter()
-            est, fitted = _estimator(method, split, protocol, params, models, truth)
-            if est.needs_fit and not fitted:
-                est.fit(ds.X[split.train], ds.y[split.train], blind.iloc[split.train].reset_index(drop=True))
-            test_meta = blind.iloc[split.test].reset_index(drop=True)
-            yhat = np.asarray(est.predict(ds.X[split.test], test_meta), dtype=np.float64)
-            std = (np.asarray(est.predict_std(ds.X[split.test], test_meta), dtype=np.float64) if est.has_std
-                   else np.full_like(yhat, np.nan))
+            for seed, est, fitted in _estimators(method, split, protocol, params, models, truth):
+                if est.needs_fit and not fitted:
+                    est.fit(ds.X[split.train], ds.y[split.train], blind.iloc[split.train].reset_index(drop=True))
+                test_meta = blind.iloc[split.test].reset_index(drop=True)
+                yhat = np.asarray(est.predict(ds.X[split.test], test_meta), dtype=np.float64)
+                std = (np.asarray(est.predict_std(ds.X[split.test], test_meta), dtype=np.float64)
+                       if est.has_std else np.full_like(yhat, np.nan))
+                rows.append(pd.DataFrame({
+                    "dataset": split.dataset, "devices": ",".join(split.devices), "protocol": protocol,
+                    "method": method, "seed": seed, "fold": split.fold,
+                    "window_id": meta["window_id"].to_numpy()[split.test],
+                    "device": meta["device"].to_numpy()[split.test],
+                    "y_x": y_test[:, 0], "y_y": y_test[:, 1], "y_z": y_test[:, 2],
+                    "yhat_x": yhat[:, 0], "yhat_y": yhat[:, 1], "yhat_z": yhat[:, 2],
+                    "std_x": std[:, 0], "std_y": std[:, 1], "std_z": std[:, 2]}))
             seconds[method] += time.perf_counter() - t0
-            frame = pd.DataFrame({
-                "dataset": split.dataset, "devices": ",".join(split.devices), "protocol": protocol,
-                "method": method, "fold": split.fold, "window_id": meta["window_id"].to_numpy()[split.test],
-                "device": meta["device"].to_numpy()[split.test],
-                "y_x": y_test[:, 0], "y_y": y_test[:, 1], "y_z": y_test[:, 2],
-                "yhat_x": yhat[:, 0], "yhat_y": yhat[:, 1], "yhat_z": yhat[:, 2],
-                "std_x": std[:, 0], "std_y": std[:, 1], "std_z": std[:, 2]})
-            rows.append(frame)
             bar.update()
     bar.close()
     return pd.concat(rows, ignore_index=True), seconds

@@ -17,6 +17,11 @@ Conventions of the statistics
 -----------------------------
 - ``rmse_std`` is the *sample* standard deviation (ddof = 1) of the fold RMSEs, as a spread
   over folds; it is null with a single fold.
+- A method trained with several seeds (OFBENet, ``train.seeds``) has one predictions row per
+  seed and signal. Its fold RMSEs, maximum errors and per-signal error norms are averaged
+  over seeds before anything else (the t-tests included): the performance of one model,
+  not of an ensemble. ``rmse_seeds`` holds each seed's mean RMSE and ``rmse_seed_std`` their
+  sample standard deviation, the spread that retraining alone causes.
 - ``improvement_pct[b] = (rmse_mean[b] − rmse_mean[m]) / rmse_mean[b] · 100`` on the
   across-fold mean RMSEs: positive when the method beats baseline ``b``.
 - ``t_test[b]`` compares baseline ``b`` with the method, ``paired_t(baseline, method)``:
@@ -128,12 +133,18 @@ def _dataset_summary(df: pd.DataFrame, folds: pd.DataFrame, baselines: Sequence[
     fold_ids = sorted(int(f) for f in df["fold"].unique())
     per: dict[str, dict[str, np.ndarray]] = {}
     for m in methods:
-        rows = df[df["method"] == m]
-        fm = folds[folds["method"] == m].sort_values("fold")
+        rows = df[df["method"] == m]  # sorted by seed, fold, window_id: aligned per seed
+        fm = folds[folds["method"] == m].sort_values(["seed", "fold"])
+        n_seeds = int(rows["seed"].nunique())
+        rmse_by_seed = fm["rmse"].to_numpy(dtype=np.float64).reshape(n_seeds, len(fold_ids))
         err = errors_of(rows)
-        per[m] = {"rmse": fm["rmse"].to_numpy(dtype=np.float64),
-                  "max": fm["max_error"].to_numpy(dtype=np.float64),
-                  "err": err, "norm": np.sqrt(np.sum(err**2, axis=1)),
+        norm = np.sqrt(np.sum(err**2, axis=1)).reshape(n_seeds, -1)
+        # a method trained with several seeds enters the tests with its fold RMSEs and error
+        # norms averaged over seeds: the expected single model, not an ensemble
+        per[m] = {"rmse": rmse_by_seed.mean(axis=0),
+                  "max": fm["max_error"].to_numpy(dtype=np.float64).reshape(n_seeds, -1).mean(axis=0),
+                  "err": err, "norm": norm.mean(axis=0), "seed_rmse": rmse_by_seed.mean(axis=1),
+                  "seeds": np.sort(rows["seed"].unique()),
                   "std": rows[list(STD_COLUMNS)].to_numpy(dtype=np.float64)}
     means = {m: float(np.mean(per[m]["rmse"])) for m in methods}
     out: dict[str, Any] = {}
@@ -151,6 +162,9 @@ def _dataset_summary(df: pd.DataFrame, folds: pd.DataFrame, baselines: Sequence[
             "rmse_folds": _round_list(p["rmse"]),
             "rmse_mean": _round(means[m]),
             "rmse_std": _round(_sample_std(p["rmse"])),
+            "seeds": [int(v) for v in p["seeds"]],
+            "rmse_seeds": _round_list(p["seed_rmse"]),
+            "rmse_seed_std": _round(_sample_std(p["seed_rmse"])),
             "max_error_folds": _round_list(p["max"]),
             "max_error_mean": _round(float(np.mean(p["max"]))),
             "improvement_pct": {b: _round(improvement_pct(means[b], means[m])) for b in others},
@@ -165,7 +179,7 @@ def _dataset_summary(df: pd.DataFrame, folds: pd.DataFrame, baselines: Sequence[
     df_fold = len(fold_ids) - 1
     return {
         "devices": devices,
-        "n_signals": int(len(df) // len(methods)),
+        "n_signals": int(per[methods[0]]["norm"].size),
         "n_folds": len(fold_ids),
         "folds": fold_ids,
         "t_critical_fold": {"alpha": ALPHA, "df": df_fold, "value": _round(t_critical(df_fold, ALPHA), 4)},
@@ -194,13 +208,17 @@ def summarise(pred: pd.DataFrame, baselines: Sequence[str] = DEFAULT_BASELINES,
     dict
         ``{"format", "protocol", "baselines", "baselines_absent", "oracle", "datasets":
         {dataset: {"devices", "n_signals", "n_folds", "folds", "t_critical_fold", "methods":
-        {method: {"rmse_folds", "rmse_mean", "rmse_std", "max_error_folds", "max_error_mean",
+        {method: {"rmse_folds", "rmse_mean", "rmse_std", "seeds", "rmse_seeds", "rmse_seed_std",
+        "max_error_folds", "max_error_mean",
         "improvement_pct": {baseline: %}, "t_test": {baseline: {"fold": {"t", "p"},
         "signal": {"t", "p"}}}, "oracle_ratio", "mean_std_m_s2", "coverage_1sigma",
         "coverage_1sigma_axes"}}}}}``. Lengths and errors in m/s²; folds ascending; floats
         rounded to :data:`SIGNIFICANT_DIGITS` significant digits; NaN and ±inf as None.
         ``rmse_std`` is the sample std (ddof = 1) over folds; the conventions of the tests
-        are in the module docstring.
+        are in the module docstring. A method with several training seeds (OFBENet) has its
+        fold RMSEs, maximum errors and per-signal error norms averaged over seeds;
+        ``rmse_seeds`` is the mean RMSE of each seed and ``rmse_seed_std`` their sample std
+        (null with one seed).
 
     Raises
     ------
@@ -343,6 +361,7 @@ def table3_markdown(summary: dict[str, Any], method_order: Sequence[str] | None 
     header += [f"t (fold) vs {first}" if first else "t (fold)", "×oracle"]
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * 3 + "---:|" * (len(header) - 3)]
     dfs: set[int] = set()
+    seeded: set[str] = set()
     for name, ds in summary["datasets"].items():
         crit = ds["t_critical_fold"]["value"]
         dfs.add(int(ds["t_critical_fold"]["df"]))
@@ -352,6 +371,9 @@ def table3_markdown(summary: dict[str, Any], method_order: Sequence[str] | None 
             rmse_text = _fmt_value(v["rmse_mean"])
             if m in best:
                 rmse_text = f"**{rmse_text}**"
+            if len(v.get("seeds", [])) > 1:
+                rmse_text += f" ± {_fmt_value(v['rmse_seed_std'], 2)} ({len(v['seeds'])} seeds)"
+                seeded.add(m)
             cells = [name if i == 0 else "", _devices_text(ds["devices"]) if i == 0 else "", m, rmse_text,
                      _fmt_value(v["rmse_std"])]
             cells += [_fmt_fixed(v["improvement_pct"].get(b), 1) for b in baselines] or ["–"]
@@ -375,6 +397,11 @@ def table3_markdown(summary: dict[str, Any], method_order: Sequence[str] | None 
            "achievable on simulated data). " if oracle else "×oracle: no oracle in this benchmark. ")
         + "Bold: the lowest mean RMSE of the dataset, oracle excluded. –: not applicable.",
     ]
+    if seeded:
+        lines += ["", f"{', '.join(sorted(seeded))}: trained with several seeds; mean RMSE ± the sample "
+                  "standard deviation over seeds of each seed's mean RMSE, the spread that retraining alone "
+                  "causes (a difference smaller than about twice it is not a real one). Its STD, improvement "
+                  "and t use the fold RMSEs averaged over seeds."]
     if summary.get("baselines_absent"):
         lines += ["", "Baselines not in the predictions (skipped): "
                   + ", ".join(summary["baselines_absent"]) + "."]
@@ -733,13 +760,13 @@ def errors_table(pred: pd.DataFrame) -> pd.DataFrame:
     Returns
     -------
     pandas.DataFrame
-        Columns ``dataset, protocol, method, fold, window_id, device, err_x, err_y, err_z,
-        err_norm`` (errors ŷ − y and their Euclidean norm, m/s²), sorted by (dataset, method,
-        fold, window_id).
+        Columns ``dataset, protocol, method, seed, fold, window_id, device, err_x, err_y,
+        err_z, err_norm`` (errors ŷ − y and their Euclidean norm, m/s²), sorted by (dataset,
+        method, seed, fold, window_id).
     """
     df = check_predictions(pred)
     err = errors_of(df)
-    out = df[["dataset", "protocol", "method", "fold", "window_id", "device"]].copy()
+    out = df[["dataset", "protocol", "method", "seed", "fold", "window_id", "device"]].copy()
     for k, a in enumerate(AXES):
         out[f"err_{a}"] = err[:, k]
     out["err_norm"] = np.sqrt(np.sum(err**2, axis=1))

@@ -375,11 +375,14 @@ def _training_line(page: _Page, path: Path) -> str:
         epochs = [int(f["epochs_run"]) for f in folds]
         best = [int(f["best_epoch"]) for f in folds if f.get("best_epoch") is not None]
         seconds = math.fsum(float(f["seconds"]) for f in folds)
+        n_folds = len({int(f["fold"]) for f in folds})
+        n_seeds = len({int(f.get("seed", 0)) for f in folds})
     except (KeyError, TypeError, ValueError) as exc:
         raise _layout_error(path, page, "an ofbe-training/1 summary", exc) from None
     best_text = f" (best epoch {_range(best)})" if best else ""
-    return (f"- `{dataset}`, protocol `{protocol}`: {len(folds)} folds, {_range(epochs)} epochs{best_text}, "
-            f"{seconds:.1f} s in total ({page.link(path, 'training.json')}).")
+    seeds_text = f" × {n_seeds} seeds" if n_seeds > 1 else ""
+    return (f"- `{dataset}`, protocol `{protocol}`: {n_folds} folds{seeds_text}, {_range(epochs)} epochs"
+            f"{best_text}, {seconds:.1f} s in total ({page.link(path, 'training.json')}).")
 
 
 def _training_section(page: _Page) -> list[str]:

@@ -8,10 +8,12 @@ report: a pandas DataFrame with one row per (method, test signal) and the column
 - ``protocol`` (str), ``method`` (str), ``fold`` (int), ``window_id`` (int), ``device`` (str);
 - ``y_x, y_y, y_z``: the label, m/s²; ``yhat_x, yhat_y, yhat_z``: the estimate, m/s²;
 - ``std_x, std_y, std_z``: the posterior standard deviation, m/s², NaN when the method has
-  none.
+  none;
+- ``seed`` (int, optional, 0 when absent): the training seed of a method trained several
+  times (OFBENet); such a method has one row per seed and signal.
 
-The design is paired: every method has exactly the same (dataset, fold, window_id) rows, with
-the same labels, so per-signal and per-fold values of two methods can be compared pairwise
+The design is paired: every method (and every seed of it) has exactly the same (dataset,
+fold, window_id) rows, with the same labels, so per-signal and per-fold values of two methods can be compared pairwise
 (:func:`check_predictions` enforces it).
 
 Conventions
@@ -44,6 +46,8 @@ KEY_COLUMNS = ("dataset", "fold", "window_id")
 REQUIRED_COLUMNS = ("dataset", "devices", "protocol", "method", "fold", "window_id", "device",
                     *LABEL_COLUMNS, *ESTIMATE_COLUMNS, *STD_COLUMNS)
 """Columns of the predictions table."""
+SEED_COLUMN = "seed"
+"""Optional column: the training seed (0 when absent)."""
 
 T_CRITICAL_DF4 = 2.776
 """Two-sided critical |t| at α = 0.05 with 4 degrees of freedom (5 folds), as in the paper."""
@@ -220,13 +224,18 @@ def _describe_keys(keys: Sequence[tuple[object, ...]]) -> str:
     return shown + more
 
 
+def _run_name(method: str, seed: int) -> str:
+    """How messages name one method's run: the method, and its seed when not 0."""
+    return method if seed == 0 else f"{method} (seed {seed})"
+
+
 def check_predictions(pred: pd.DataFrame) -> pd.DataFrame:
     """Validate the predictions table and return it in canonical order.
 
-    Checks: the columns exist; labels and estimates are finite; ``fold`` and ``window_id``
-    are integers; no (dataset, method, fold, window_id) appears twice; ``devices`` has one
-    value per dataset; every method has the same (dataset, fold, window_id) rows (paired
-    design) with the same labels (within :data:`LABEL_ATOL_M_S2`); posterior standard
+    Checks: the columns exist; labels and estimates are finite; ``fold``, ``window_id`` and
+    ``seed`` are integers; no (dataset, method, seed, fold, window_id) appears twice;
+    ``devices`` has one value per dataset; every method and seed has the same (dataset, fold,
+    window_id) rows (paired design) with the same labels (within :data:`LABEL_ATOL_M_S2`); posterior standard
     deviations are either all NaN or all finite and non-negative per method.
 
     Parameters
@@ -237,9 +246,9 @@ def check_predictions(pred: pd.DataFrame) -> pd.DataFrame:
     Returns
     -------
     pandas.DataFrame
-        A copy sorted by (dataset, method, fold, window_id) with a fresh index; ``fold`` and
-        ``window_id`` as int64. Within a dataset, the rows of every method are therefore
-        aligned signal by signal.
+        A copy sorted by (dataset, method, seed, fold, window_id) with a fresh index; ``seed``
+        (0 when the input has none), ``fold`` and ``window_id`` as int64. Within a dataset, the
+        rows of every method and seed are therefore aligned signal by signal.
 
     Raises
     ------
@@ -253,7 +262,8 @@ def check_predictions(pred: pd.DataFrame) -> pd.DataFrame:
     if pred.empty:
         raise ValueError("predictions: expected at least one row, found none")
     df = pred.loc[:, list(REQUIRED_COLUMNS)].copy()
-    for col in ("fold", "window_id"):
+    df[SEED_COLUMN] = pred[SEED_COLUMN].to_numpy() if SEED_COLUMN in pred.columns else 0
+    for col in ("fold", "window_id", SEED_COLUMN):
         values = pd.to_numeric(df[col], errors="coerce").to_numpy(dtype=np.float64)
         if not np.all(np.isfinite(values)) or np.any(values != np.round(values)):
             raise ValueError(f"predictions: expected integer {col!r}, found {df[col].dtype} values that "
@@ -265,11 +275,11 @@ def check_predictions(pred: pd.DataFrame) -> pd.DataFrame:
     if not np.all(np.isfinite(vec)):
         bad = df.loc[~np.isfinite(vec).all(axis=1), "method"].unique().tolist()
         raise ValueError(f"predictions: expected finite labels and estimates; NaN or inf in methods {bad}")
-    ident = ["dataset", "method", "fold", "window_id"]
+    ident = ["dataset", "method", SEED_COLUMN, "fold", "window_id"]
     dup = df.duplicated(ident, keep=False)
     if dup.any():
         first = df.loc[dup, ident].iloc[0].tolist()
-        raise ValueError(f"predictions: expected one row per (dataset, method, fold, window_id), found "
+        raise ValueError(f"predictions: expected one row per (dataset, method, seed, fold, window_id), found "
                          f"{int(dup.sum())} duplicated rows, e.g. {first}")
     n_devices = df.groupby("dataset")["devices"].nunique()
     if (n_devices > 1).any():
@@ -277,8 +287,8 @@ def check_predictions(pred: pd.DataFrame) -> pd.DataFrame:
                          f"{sorted(n_devices[n_devices > 1].index)} have several")
     df = df.sort_values(ident, kind="stable").reset_index(drop=True)
 
-    keys_by_method = {m: set(map(tuple, g[list(KEY_COLUMNS)].itertuples(index=False)))
-                      for m, g in df.groupby("method", sort=True)}
+    keys_by_method = {_run_name(m, seed): set(map(tuple, g[list(KEY_COLUMNS)].itertuples(index=False)))
+                      for (m, seed), g in df.groupby(["method", SEED_COLUMN], sort=True)}
     every = set().union(*keys_by_method.values())
     problems = []
     for method, keys in keys_by_method.items():
@@ -290,8 +300,8 @@ def check_predictions(pred: pd.DataFrame) -> pd.DataFrame:
                          "(paired design); " + "; ".join(problems))
 
     methods = list(keys_by_method)
-    labels = {m: g[list(LABEL_COLUMNS)].to_numpy(dtype=np.float64)
-              for m, g in df.groupby("method", sort=True)}
+    labels = {_run_name(m, seed): g[list(LABEL_COLUMNS)].to_numpy(dtype=np.float64)
+              for (m, seed), g in df.groupby(["method", SEED_COLUMN], sort=True)}
     for m in methods[1:]:
         worst = float(np.max(np.abs(labels[m] - labels[methods[0]])))
         if worst > LABEL_ATOL_M_S2:
@@ -321,7 +331,7 @@ def errors_of(pred: pd.DataFrame) -> np.ndarray:
 
 
 def fold_metrics(pred: pd.DataFrame) -> pd.DataFrame:
-    """RMSE and maximum error per (dataset, method, fold).
+    """RMSE and maximum error per (dataset, method, seed, fold).
 
     Parameters
     ----------
@@ -331,14 +341,14 @@ def fold_metrics(pred: pd.DataFrame) -> pd.DataFrame:
     Returns
     -------
     pandas.DataFrame
-        Columns ``dataset, method, fold, rmse, max_error, n`` (m/s², m/s², signals), one row
-        per (dataset, method, fold), sorted by those keys.
+        Columns ``dataset, method, seed, fold, rmse, max_error, n`` (m/s², m/s², signals),
+        one row per (dataset, method, seed, fold), sorted by those keys.
     """
     df = check_predictions(pred)
     rows = []
-    for (dataset, method, fold), g in df.groupby(["dataset", "method", "fold"], sort=True):
+    for (dataset, method, seed, fold), g in df.groupby(["dataset", "method", SEED_COLUMN, "fold"], sort=True):
         y = g[list(LABEL_COLUMNS)].to_numpy(dtype=np.float64)
         yhat = g[list(ESTIMATE_COLUMNS)].to_numpy(dtype=np.float64)
-        rows.append({"dataset": dataset, "method": method, "fold": int(fold), "rmse": rmse(y, yhat),
-                     "max_error": max_error(y, yhat), "n": len(g)})
-    return pd.DataFrame(rows, columns=["dataset", "method", "fold", "rmse", "max_error", "n"])
+        rows.append({"dataset": dataset, "method": method, "seed": int(seed), "fold": int(fold),
+                     "rmse": rmse(y, yhat), "max_error": max_error(y, yhat), "n": len(g)})
+    return pd.DataFrame(rows, columns=["dataset", "method", "seed", "fold", "rmse", "max_error", "n"])

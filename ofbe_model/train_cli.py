@@ -3,28 +3,35 @@
 Usage::
 
     ofbe-train processed/datasets/rotated --protocol grouped [--out models] [--folds 0 1]
-               [--max-epochs N] [--params params.yaml] [--quiet]
+               [--max-epochs N] [--seeds N] [--params params.yaml] [--quiet]
 
 For every benchmark dataset (the pooled campaign, or one per device: see
 :mod:`ofbe_model.evaluation`) and every fold of :func:`~ofbe_model.evaluation.protocol_splits`,
 OFBENet is fitted on that fold's training windows (never its test signals) and written to
 ``<out>/<dataset>/<protocol>/`` with ``/`` in the dataset name replaced by ``__``:
 
-``fold-<k>.keras``
-    The model: raw (N, T, 3) m/s² windows → (N, 3) m/s² biases, scalings inside
-    (:meth:`ofbe_model.ofbenet.OFBENet.load`).
-``fold-<k>.history.csv``
+``fold-<k>.seed-<s>.keras``
+    The model of fold k trained with seed s: raw (N, T, 3) m/s² windows → (N, 3) m/s²
+    biases, scalings inside (:meth:`ofbe_model.ofbenet.OFBENet.load`).
+``fold-<k>.seed-<s>.history.csv``
     Per epoch: ``epoch`` (1-based), ``loss``, ``val_loss``, ``learning_rate``.
 ``fold-<k>.training.png``
-    The training curve: loss and validation loss against epoch, log scale.
+    The training curves of every seed of the fold: loss and validation loss against epoch,
+    log scale.
 ``training.json``
-    Per fold: epochs run, best epoch and validation loss, seconds, windows trained on,
-    validated on and held out for testing, and the parameters. Folds trained earlier and not
-    named by ``--folds`` are kept.
+    Per fold and seed: epochs run, best epoch and validation loss, seconds, windows trained
+    on, validated on and held out for testing, and the parameters. Folds trained earlier and
+    not named by ``--folds`` are kept.
+
+OFBENet's result moves with its training seed (weight initialisation, validation split,
+shuffling, dropout) by more than many differences between methods, so every fold is trained
+with several seeds: ``train.seeds`` (or ``--seeds``) N trains seeds ``seed … seed + N − 1``
+and the benchmark reports the mean ± sd over them.
 
 Parameters come from the ``train:`` section of ``--params`` (keys: the fields of
-:class:`~ofbe_model.ofbenet.OFBENetParams`), then ``--max-epochs``. Existing files of the
-folds trained are replaced; every file is written atomically.
+:class:`~ofbe_model.ofbenet.OFBENetParams`, plus ``seeds``), then ``--max-epochs`` and
+``--seeds``. Existing files of the folds trained are replaced; every file is written
+atomically.
 
 Exit status: 0 on success, 1 when the data are bad or training fails, 2 on a usage or
 parameter error (unknown key, unknown protocol or fold, missing dataset folder). Every error
@@ -34,6 +41,7 @@ is one line.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import io
 import json
 import sys
@@ -44,6 +52,7 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+from matplotlib import pyplot as plt
 from matplotlib.ticker import MaxNLocator
 
 from ofbe_data.atomic import write_bytes_atomic
@@ -59,6 +68,10 @@ PROG = "ofbe-train"
 SUMMARY_FORMAT = "ofbe-training/1"
 SUMMARY_NAME = "training.json"
 PARAMS_SECTION = "train"
+SEEDS_KEY = "seeds"
+"""Key of ``train:`` giving how many training seeds each fold gets (not an OFBENet parameter)."""
+DEFAULT_SEEDS = 1
+"""Seeds per fold when neither ``train.seeds`` nor ``--seeds`` says."""
 
 
 class _Usage(Exception):
@@ -72,7 +85,7 @@ def read_params(path: str | Path | None, max_epochs: int | None = None) -> OFBEN
     ----------
     path
         YAML file (e.g. params.yaml) or None for the defaults. A file without a ``train:``
-        section gives the defaults.
+        section gives the defaults. Its ``seeds`` key is read by :func:`read_seed_count`.
     max_epochs
         Overrides ``max_epochs`` when given.
 
@@ -84,6 +97,7 @@ def read_params(path: str | Path | None, max_epochs: int | None = None) -> OFBEN
     """
     source: str | Path = path if path is not None else "command line"
     data = dict(read_section(path, PARAMS_SECTION)) if path is not None else {}
+    data.pop(SEEDS_KEY, None)
     if max_epochs is not None:
         data["max_epochs"] = max_epochs
     try:
@@ -94,6 +108,26 @@ def read_params(path: str | Path | None, max_epochs: int | None = None) -> OFBEN
                 f"{PARAMS_SECTION}.{exc.key}"
             raise ConfigError(source, key, exc.expected, exc.found) from None
         raise
+
+
+def read_seed_count(path: str | Path | None, seeds: int | None = None) -> int:
+    """How many training seeds per fold: ``seeds`` when given, else ``train.seeds``, else 1.
+
+    Raises
+    ------
+    ConfigError
+        Not an integer ≥ 1 (naming the file and key, or ``--seeds``).
+    """
+    if seeds is not None:
+        value: Any = seeds
+        source, key = "command line", "--seeds"
+    else:
+        section = dict(read_section(path, PARAMS_SECTION)) if path is not None else {}
+        value = section.get(SEEDS_KEY, DEFAULT_SEEDS)
+        source, key = str(path), f"{PARAMS_SECTION}.{SEEDS_KEY}"
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise ConfigError(source, key, "an integer >= 1", repr(value))
+    return int(value)
 
 
 def dataset_dirname(name: str) -> str:
@@ -120,39 +154,51 @@ def loss_label(params: OFBENetParams) -> str:
     return "MSE of biases, (m/s²)²"
 
 
-def plot_history(history: Mapping[str, Sequence[float]], path: Path, title: str, ylabel: str,
-                 best_epoch: int | None) -> Path:
-    """Training curve: loss and validation loss against epoch (log y), the kept epoch marked.
+def plot_history(histories: Mapping[int, Mapping[str, Sequence[float]]], path: Path, title: str,
+                 ylabel: str, best_epochs: Mapping[int, int | None]) -> Path:
+    """Training curves of one fold: loss and validation loss against epoch (log y), per seed.
 
     Parameters
     ----------
-    history
-        ``loss`` and optionally ``val_loss``, one value per epoch.
+    histories
+        Seed → ``loss`` and optionally ``val_loss``, one value per epoch.
     path
         Target PNG.
     title, ylabel
         Figure title and y-axis label.
-    best_epoch
-        1-based epoch whose weights were kept, or None.
+    best_epochs
+        Seed → 1-based epoch whose weights were kept (marked), or None.
     """
     fig, ax = new_figure()
-    for key, label in (("loss", "training loss"), ("val_loss", "validation loss")):
-        values = np.asarray(history.get(key, []), dtype=np.float64)
-        if values.size:
-            ax.plot(np.arange(1, values.size + 1), values, marker="o", markersize=3, label=label)
-    if best_epoch is not None:
-        ax.axvline(best_epoch, color="0.4", linestyle="--", linewidth=1, label=f"kept: epoch {best_epoch}")
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for i, (seed, history) in enumerate(sorted(histories.items())):
+        colour = colours[i % len(colours)]
+        tag = f"seed {seed}: " if len(histories) > 1 else ""
+        for key, label, style in (("loss", "training loss", "-"), ("val_loss", "validation loss", "--")):
+            values = np.asarray(history.get(key, []), dtype=np.float64)
+            if values.size:
+                ax.plot(np.arange(1, values.size + 1), values, style, color=colour, marker="o",
+                        markersize=3, label=f"{tag}{label}")
+        best = best_epochs.get(seed)
+        if best is not None:
+            ax.axvline(best, color=colour, linestyle=":", linewidth=1,
+                       label=f"{tag}kept epoch {best}")
     ax.set_yscale("log")
     ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_xlabel("epoch")
     ax.set_ylabel(ylabel)
     ax.set_title(title)
-    ax.legend(frameon=False)
+    ax.legend(frameon=False, fontsize="small", ncol=2 if len(histories) > 1 else 1)
     return save_png(fig, path)
 
 
-def _read_summary(path: Path, dataset: str, protocol: str) -> dict[int, dict[str, Any]]:
-    """Fold entries of an existing training.json of the same dataset and protocol ({} otherwise)."""
+def model_name(fold: int, seed: int) -> str:
+    """File name of the model of one fold and training seed: ``fold-<k>.seed-<s>.keras``."""
+    return f"fold-{fold}.seed-{seed}.keras"
+
+
+def _read_summary(path: Path, dataset: str, protocol: str) -> dict[tuple[int, int], dict[str, Any]]:
+    """(fold, seed) entries of an existing training.json of the same dataset and protocol ({} otherwise)."""
     try:
         old = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError):
@@ -160,12 +206,13 @@ def _read_summary(path: Path, dataset: str, protocol: str) -> dict[int, dict[str
     if (not isinstance(old, dict) or old.get("format") != SUMMARY_FORMAT or old.get("dataset") != dataset
             or old.get("protocol") != protocol or not isinstance(old.get("folds"), list)):
         return {}
-    return {int(f["fold"]): f for f in old["folds"] if isinstance(f, dict) and isinstance(f.get("fold"), int)}
+    return {(int(f["fold"]), int(f["seed"])): f for f in old["folds"]
+            if isinstance(f, dict) and isinstance(f.get("fold"), int) and isinstance(f.get("seed"), int)}
 
 
 def train_fold(x: np.ndarray, y: np.ndarray, meta: pd.DataFrame, split: Split, params: OFBENetParams,
-               folder: Path, protocol: str, verbose: int) -> dict[str, Any]:
-    """Fit one fold and write its model, history CSV and training curve.
+               folder: Path, verbose: int) -> tuple[dict[str, Any], dict[str, list[float]]]:
+    """Fit one fold with one seed (``params.seed``); write its model and history CSV.
 
     Parameters
     ----------
@@ -174,42 +221,51 @@ def train_fold(x: np.ndarray, y: np.ndarray, meta: pd.DataFrame, split: Split, p
     split
         The fold (its ``train`` rows are fitted; its ``test`` rows are only counted).
     params
-        OFBENet parameters.
+        OFBENet parameters, the training seed included.
     folder
         ``<out>/<dataset>/<protocol>``.
-    protocol
-        Protocol name (for the figure title).
     verbose
         Keras verbosity (0 or 2).
 
     Returns
     -------
-    dict
-        The fold's ``training.json`` entry.
+    entry
+        The (fold, seed) entry of ``training.json``.
+    history
+        The per-epoch history (for the training-curve figure).
     """
-    stem = f"fold-{split.fold}"
+    name = model_name(split.fold, params.seed)
+    stem = name.removesuffix(".keras")
     t0 = time.perf_counter()
     est = OFBENet.from_params(params).fit(x[split.train], y[split.train],
                                           meta.iloc[split.train].reset_index(drop=True), verbose=verbose)
     seconds = time.perf_counter() - t0
-    est.save(folder / f"{stem}.keras")
+    est.save(folder / name)
     write_bytes_atomic(folder / f"{stem}.history.csv", history_csv(est.history_))
-    plot_history(est.history_, folder / f"{stem}.training.png",
-                 f"OFBENet, {split.dataset}, {protocol}, fold {split.fold}", loss_label(params),
-                 est.best_epoch_)
     val = est.history_.get("val_loss")
     lr = est.history_.get("learning_rate")
-    return {"fold": split.fold, "model": f"{stem}.keras", "history": f"{stem}.history.csv",
-            "curve": f"{stem}.training.png", "epochs_run": len(est.history_["loss"]),
-            "best_epoch": est.best_epoch_, "best_val_loss": min(val) if val else None,
-            "best_loss": est.history_["loss"][est.best_epoch_ - 1],
-            "final_learning_rate": lr[-1] if lr else None, "seconds": round(seconds, 3),
-            "n_train": est.n_train_, "n_val": est.n_val_, "n_test": int(split.test.size),
-            "params": params.to_dict()}
+    entry = {"fold": split.fold, "seed": params.seed, "model": name, "history": f"{stem}.history.csv",
+             "curve": f"fold-{split.fold}.training.png", "epochs_run": len(est.history_["loss"]),
+             "best_epoch": est.best_epoch_, "best_val_loss": min(val) if val else None,
+             "best_loss": est.history_["loss"][est.best_epoch_ - 1],
+             "final_learning_rate": lr[-1] if lr else None, "seconds": round(seconds, 3),
+             "n_train": est.n_train_, "n_val": est.n_val_, "n_test": int(split.test.size),
+             "params": params.to_dict()}
+    return entry, {k: list(v) for k, v in est.history_.items()}
+
+
+def _history_from_csv(path: Path) -> dict[str, list[float]]:
+    """A history CSV written by :func:`history_csv` back as columns ({} when unreadable)."""
+    try:
+        frame = pd.read_csv(path)
+    except (OSError, ValueError):
+        return {}
+    return {c: frame[c].tolist() for c in frame.columns if c != "epoch"}
 
 
 def train(dataset: str | Path, protocol: str, out: str | Path, params: OFBENetParams,
-          folds: Sequence[int] | None = None, progress: bool = True) -> list[Path]:
+          folds: Sequence[int] | None = None, progress: bool = True, seeds: int = DEFAULT_SEEDS,
+          ) -> list[Path]:
     """Train every (selected) fold of every benchmark dataset of one windowed dataset.
 
     Parameters
@@ -221,11 +277,13 @@ def train(dataset: str | Path, protocol: str, out: str | Path, params: OFBENetPa
     out
         Models folder.
     params
-        OFBENet parameters.
+        OFBENet parameters; ``params.seed`` is the first training seed.
     folds
         Fold indices to train (all when None).
     progress
         Per-fold lines on stderr and Keras' one line per epoch.
+    seeds
+        Training seeds per fold: ``params.seed`` … ``params.seed + seeds − 1``.
 
     Returns
     -------
@@ -255,36 +313,50 @@ def train(dataset: str | Path, protocol: str, out: str | Path, params: OFBENetPa
             raise _Usage(f"--folds: expected folds of {protocol} ({', '.join(map(str, available))}), "
                          f"found {', '.join(map(str, unknown))}")
         splits = [s for s in splits if s.fold in set(folds)]
+    seed_list = [params.seed + i for i in range(seeds)]
     out = Path(out)
     written: list[Path] = []
     by_dataset: dict[str, list[Split]] = {}
     for s in splits:
         by_dataset.setdefault(s.dataset, []).append(s)
-    done = 0
+    done, total = 0, len(splits) * len(seed_list)
     for name, group in by_dataset.items():
         folder = out / dataset_dirname(name) / protocol
         folder.mkdir(parents=True, exist_ok=True)
         summary_path = folder / SUMMARY_NAME
         entries = _read_summary(summary_path, name, protocol)
         for split in group:
-            done += 1
-            if progress:
-                print(f"{PROG}: [{done}/{len(splits)}] {name} {protocol} fold {split.fold}: training on "
-                      f"{split.train.size} windows (test signals held out: {split.test.size})",
-                      file=sys.stderr, flush=True)
-            entry = train_fold(ds.X, ds.y, meta, split, params, folder, protocol, 2 if progress else 0)
-            entries[split.fold] = entry
-            summary = {"format": SUMMARY_FORMAT, "dataset": name, "dataset_path": str(dataset),
-                       "protocol": protocol, "kind": str(ds.info["kind"]), "devices": list(split.devices),
-                       "window_length": int(ds.X.shape[1]), "loss": loss_label(params),
-                       "folds": [entries[k] for k in sorted(entries)]}
-            write_bytes_atomic(summary_path, (json.dumps(summary, indent=2, allow_nan=False) + "\n").encode())
-            if progress:
-                best = entry["best_val_loss"] if entry["best_val_loss"] is not None else entry["best_loss"]
-                print(f"{PROG}: {name} fold {split.fold}: {entry['epochs_run']} epochs "
-                      f"(kept {entry['best_epoch']}, loss {best:.4g}) in {entry['seconds']:.1f} s "
-                      f"-> {folder / entry['model']}",
-                      file=sys.stderr, flush=True)
+            histories: dict[int, dict[str, list[float]]] = {}
+            for seed in seed_list:
+                done += 1
+                if progress:
+                    print(f"{PROG}: [{done}/{total}] {name} {protocol} fold {split.fold} seed {seed}: training on "
+                          f"{split.train.size} windows (test signals held out: {split.test.size})",
+                          file=sys.stderr, flush=True)
+                fold_params = dataclasses.replace(params, seed=seed)
+                entry, histories[seed] = train_fold(ds.X, ds.y, meta, split, fold_params, folder,
+                                                    2 if progress else 0)
+                entries[(split.fold, seed)] = entry
+                summary = {"format": SUMMARY_FORMAT, "dataset": name, "dataset_path": str(dataset),
+                           "protocol": protocol, "kind": str(ds.info["kind"]), "devices": list(split.devices),
+                           "window_length": int(ds.X.shape[1]), "loss": loss_label(params),
+                           "folds": [entries[k] for k in sorted(entries)]}
+                write_bytes_atomic(summary_path,
+                                   (json.dumps(summary, indent=2, allow_nan=False) + "\n").encode())
+                if progress:
+                    best = entry["best_val_loss"] if entry["best_val_loss"] is not None else entry["best_loss"]
+                    print(f"{PROG}: {name} fold {split.fold} seed {seed}: {entry['epochs_run']} epochs "
+                          f"(kept {entry['best_epoch']}, loss {best:.4g}) in {entry['seconds']:.1f} s "
+                          f"-> {folder / entry['model']}",
+                          file=sys.stderr, flush=True)
+            # the figure shows every seed of the fold on record, those trained earlier included
+            on_record = {seed: e for (fold, seed), e in entries.items() if fold == split.fold}
+            for seed, e in on_record.items():
+                if seed not in histories:
+                    histories[seed] = _history_from_csv(folder / e["history"])
+            plot_history(histories, folder / f"fold-{split.fold}.training.png",
+                         f"OFBENet, {split.dataset}, {protocol}, fold {split.fold}", loss_label(params),
+                         {seed: e["best_epoch"] for seed, e in on_record.items()})
         written.append(summary_path)
     return written
 
@@ -298,6 +370,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="models", help="models folder (default: models)")
     p.add_argument("--folds", type=int, nargs="+", metavar="K", help="train only these folds (default: all)")
     p.add_argument("--max-epochs", type=int, help="override train.max_epochs")
+    p.add_argument("--seeds", type=int, metavar="N",
+                   help="train every fold with N seeds (train.seed … train.seed + N − 1; override train.seeds)")
     p.add_argument("--params", help="YAML file whose 'train:' section sets the OFBENet parameters")
     p.add_argument("--quiet", action="store_true", help="no progress (per-fold and per-epoch lines)")
     return p
@@ -319,6 +393,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     try:
         params = read_params(args.params, args.max_epochs)
+        seeds = read_seed_count(args.params, args.seeds)
         fold_column(args.protocol)
     except OfbeError as exc:
         return _fail(str(exc), 2)
@@ -327,7 +402,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return _fail(f"{dataset}: expected a dataset folder, found no such folder", 2)
     t0 = time.perf_counter()
     try:
-        written = train(dataset, args.protocol, args.out, params, args.folds, progress=not args.quiet)
+        written = train(dataset, args.protocol, args.out, params, args.folds, progress=not args.quiet,
+                        seeds=seeds)
     except _Usage as exc:
         return _fail(str(exc), 2)
     except (OfbeError, OSError) as exc:

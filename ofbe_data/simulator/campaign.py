@@ -19,6 +19,8 @@ import numpy as np
 from ofbe_data.atomic import write_bytes_atomic
 from ofbe_data.errors import ConfigError
 from ofbe_data.gravity import G0
+from ofbe_data.linalg3 import mul3, norm3
+from ofbe_data.precision import round_floats
 from ofbe_data.manifest import (
     DeviceSpec,
     RecordingSpec,
@@ -94,12 +96,12 @@ class DeviceDraw:
     @property
     def A_effective(self) -> np.ndarray:
         """Map from the *nominal* direction to the reading: A·misalignment."""
-        return self.A @ self.misalignment
+        return mul3(self.A, self.misalignment)
 
     @property
     def mount_rotation(self) -> np.ndarray:
         """True reference→sensor rotation: misalignment·nominal."""
-        return self.misalignment @ self.nominal
+        return mul3(self.misalignment, self.nominal)
 
 
 @dataclass(frozen=True)
@@ -190,12 +192,12 @@ def _multi_position_settings(cfg: SimConfig, rng: np.random.Generator) -> list[l
         for k in range(r):
             if k < 6:
                 tilt = small_rotation(rng.normal(0.0, np.radians(cfg.tilts.face_error_deg), 3))
-                u = tilt @ faces[k]
+                u = mul3(tilt, faces[k])
                 nominal = roll_pitch(faces[k])
             else:
                 u = extra[k - 6]
                 nominal = tuple(float(np.round(v)) for v in roll_pitch(u))
-            row.append(Setting(nominal[0], nominal[1], u / np.linalg.norm(u)))
+            row.append(Setting(nominal[0], nominal[1], u / norm3(u)))
         out.append(row)
     return out
 
@@ -258,7 +260,7 @@ def _level_nominal(up_axis: str) -> np.ndarray:
     if np.allclose(target, -z):
         return np.diag([1.0, -1.0, -1.0])
     axis = np.cross(z, target)
-    return small_rotation(axis / np.linalg.norm(axis) * np.pi / 2)
+    return small_rotation(axis / norm3(axis) * np.pi / 2)
 
 
 # --------------------------------------------------------------------------- sessions
@@ -309,8 +311,12 @@ def _utc(base: datetime, seconds: float) -> datetime:
     return base + timedelta(seconds=seconds)
 
 
+TRUTH_DECIMALS = 12
+"""Decimal places of every float in a truth JSON (docs/formats.md)."""
+
+
 def _as_list(a: np.ndarray) -> Any:
-    return np.asarray(a, dtype=float).round(12).tolist()
+    return np.asarray(a, dtype=float).tolist()
 
 
 @dataclass(frozen=True)
@@ -352,7 +358,7 @@ def _tap_sum(t: np.ndarray, taps: list[dict[str, Any]], rotation: np.ndarray, de
     out = np.zeros((t.shape[0], 3))
     for tap in taps:
         out += tap_signal(t, tap["t"], tap["amplitude"], tap["frequency"], decay,
-                          rotation @ tap["direction"])
+                          mul3(rotation, tap["direction"]))
     return out
 
 
@@ -377,8 +383,8 @@ def _simulate_dut(cfg: SimConfig, draw: CampaignDraw, dev: DeviceDraw, setting: 
     clock = clock[keep]
     t_local = (clock - uptime0) / rate + t_power - t_rec  # s after the recording start
     n = clock.shape[0]
-    u_nominal = dev.nominal @ setting.u_plate
-    u_sensor = dev.misalignment @ u_nominal
+    u_nominal = mul3(dev.nominal, setting.u_plate)
+    u_sensor = mul3(dev.misalignment, u_nominal)
     drift = np.stack([gauss_markov(n, 1.0 / m.rate_hz, m.drift_sigma_mg * MG, m.drift_tau_s, rng)
                       for _ in range(3)], axis=1)
     since_power = t_local + t_rec - t_power
@@ -387,14 +393,14 @@ def _simulate_dut(cfg: SimConfig, draw: CampaignDraw, dev: DeviceDraw, setting: 
     specific = draw.g_local * u_sensor[None, :] + _tap_sum(t_local, taps, dev.mount_rotation,
                                                             cfg.taps.decay_s)
     noise = rng.standard_normal((n, 3)) * (np.asarray(m.noise_mg) * MG)
-    f = specific @ dev.A.T + bias + noise
+    f = mul3(specific, dev.A.T) + bias + noise
     limit = int(round(m.range_g * m.lsb_per_g))
     counts = np.clip(np.rint(f / G0 * m.lsb_per_g), -limit, limit - 1).astype(np.int64)
     t_us = np.floor(clock * 1e6).astype(np.int64)
     s0, s1 = timeline.stationary
     stat = (t_local >= s0) & (t_local <= s1)
     offset = bias[stat].mean(axis=0)
-    apparent = dev.A @ u_sensor * draw.g_local + offset - draw.g_local * u_nominal
+    apparent = mul3(dev.A, u_sensor) * draw.g_local + offset - draw.g_local * u_nominal
     wraps_before = int(t_us[0] // WRAP_US)
     clock_offset = uptime0 + (t_rec - t_power) * rate - wraps_before * WRAP_US * 1e-6
     host = _utc(base_utc, t_rec + t_local[0] + rng.uniform(-m.host_latency_s, m.host_latency_s))
@@ -434,7 +440,7 @@ def _simulate_reference(cfg: SimConfig, draw: CampaignDraw, setting: Setting,
     assert draw.reference_A is not None
     specific = draw.g_local * setting.u_plate[None, :] + _tap_sum(t, taps, np.eye(3),
                                                                    cfg.taps.decay_s)
-    f = specific @ draw.reference_A.T + b_ref + rng.standard_normal((n, 3)) * rm.noise_mg * MG
+    f = mul3(specific, draw.reference_A.T) + b_ref + rng.standard_normal((n, 3)) * rm.noise_mg * MG
     gyro = rng.standard_normal((n, 3)) * rm.gyro_noise_dps
     for tap in taps:
         gyro += tap_signal(t, tap["t"], 20.0, tap["frequency"], cfg.taps.decay_s,
@@ -652,7 +658,8 @@ def write_session(data: SessionData, folder: Path, truth_path: Path, garble_rate
                 write_mscip_csv(path, r.t_s, r.acc_g, r.gyro_dps, r.temperature_c,
                                 serial=r.serial, rate_hz=r.rate_hz, start_utc=r.start_utc)
     write_manifest(data.manifest, folder / "session.yaml")
-    write_bytes_atomic(truth_path, (json.dumps(data.truth, indent=1) + "\n").encode())
+    truth = round_floats(data.truth, TRUTH_DECIMALS)
+    write_bytes_atomic(truth_path, (json.dumps(truth, indent=1) + "\n").encode())
 
 
 def truth_config(cfg: SimConfig, seed: int, campaign: str) -> dict[str, Any]:

@@ -10,6 +10,8 @@ import numpy as np
 from scipy.signal import lfilter
 from scipy.spatial.transform import Rotation
 
+from ofbe_data.linalg3 import mul3, norm3
+
 MG = 9.80665e-3
 """One milli-g in m/s² (unit conversion with standard gravity g0)."""
 
@@ -66,7 +68,7 @@ def sensor_matrix(scale: np.ndarray, nonorth_rad: np.ndarray) -> np.ndarray:
     """
     a_yz, a_zy, a_zx = nonorth_rad
     t = np.array([[1.0, -a_yz, a_zy], [0.0, 1.0, -a_zx], [0.0, 0.0, 1.0]])
-    return (np.eye(3) + np.diag(scale)) @ t
+    return mul3(np.eye(3) + np.diag(scale), t)
 
 
 def gauss_markov(n: int, dt: float, sigma: float, tau: float, rng: np.random.Generator,
@@ -133,4 +135,4 @@ def tap_signal(t: np.ndarray, t_tap: float, amplitude: float, frequency_hz: floa
 def random_unit_vectors(n: int, rng: np.random.Generator) -> np.ndarray:
     """(n, 3) directions uniform on the sphere."""
     v = rng.standard_normal((n, 3))
-    return v / np.linalg.norm(v, axis=1, keepdims=True)
+    return v / norm3(v)[:, None]

@@ -16,6 +16,7 @@ from matplotlib.container import BarContainer
 from scipy import stats
 
 from ofbe_model import benchmark_report as br
+from ofbe_model.statistics import paired_t
 from ofbe_model.benchmark_report import (
     max_error_figure,
     ordered_methods,
@@ -94,13 +95,15 @@ def test_summary_structure(summary: dict[str, Any]) -> None:
     assert summary["datasets"]["rotated/sparkfun-1"]["devices"] == ["sparkfun-1"]
     assert ga["n_signals"] == N_FOLDS * N_PER_FOLD and ga["n_folds"] == N_FOLDS
     assert ga["t_critical_fold"] == {"alpha": 0.05, "df": 4, "value": 2.776}
-    keys = {"rmse_folds", "rmse_mean", "rmse_std", "max_error_folds", "max_error_mean", "improvement_pct",
-            "t_test", "oracle_ratio", "mean_std_m_s2", "coverage_1sigma", "coverage_1sigma_axes"}
+    keys = {"rmse_folds", "rmse_mean", "rmse_std", "seeds", "rmse_seeds", "rmse_seed_std", "max_error_folds",
+            "max_error_mean", "improvement_pct", "t_test", "oracle_ratio", "mean_std_m_s2", "coverage_1sigma",
+            "coverage_1sigma_axes"}
     for ds in summary["datasets"].values():
         assert set(ds["methods"]) == set(METHODS)
         for v in ds["methods"].values():
             assert set(v) == keys
             assert len(v["rmse_folds"]) == len(v["max_error_folds"]) == N_FOLDS
+            assert v["seeds"] == [0] and v["rmse_seeds"] == [v["rmse_mean"]] and v["rmse_seed_std"] is None
     # serialisable under the report's rules
     json.dumps(summary, allow_nan=False)
 
@@ -325,8 +328,8 @@ def test_report_files(report: Path, summary: dict[str, Any]) -> None:
 
 def test_csvs(report: Path, pred: pd.DataFrame) -> None:
     err = pd.read_csv(report / "errors.csv")
-    assert list(err.columns) == ["dataset", "protocol", "method", "fold", "window_id", "device", "err_x",
-                                 "err_y", "err_z", "err_norm"]
+    assert list(err.columns) == ["dataset", "protocol", "method", "seed", "fold", "window_id", "device",
+                                 "err_x", "err_y", "err_z", "err_norm"]
     assert len(err) == len(pred)
     assert err[["dataset", "method", "fold", "window_id"]].equals(
         err[["dataset", "method", "fold", "window_id"]].sort_values(
@@ -339,7 +342,7 @@ def test_csvs(report: Path, pred: pd.DataFrame) -> None:
     np.testing.assert_allclose(row[["err_x", "err_y", "err_z"]].to_numpy(), e, rtol=1e-8)
     assert row["err_norm"].iloc[0] == pytest.approx(np.linalg.norm(e), rel=1e-8)
     fm = pd.read_csv(report / "fold_metrics.csv")
-    assert list(fm.columns) == ["dataset", "method", "fold", "rmse", "max_error", "n"]
+    assert list(fm.columns) == ["dataset", "method", "seed", "fold", "rmse", "max_error", "n"]
     assert len(fm) == len(DATASETS) * len(METHODS) * N_FOLDS
     got = fm[(fm["dataset"] == "gravity-aligned") & (fm["method"] == "oracle")]["rmse"].to_numpy()
     np.testing.assert_allclose(got, _fold_rmse(pred, "gravity-aligned", "oracle"), rtol=1e-8)
@@ -361,3 +364,42 @@ def test_write_report_rejects_a_foreign_summary(pred: pd.DataFrame, tmp_path: Pa
     with pytest.raises(ValueError, match="methods"):
         write_report(tmp_path / "r", pred, other, "t")
     assert not (tmp_path / "r").exists()
+
+
+def test_several_seeds_are_averaged_before_the_tests(pred: pd.DataFrame) -> None:
+    """A method with three seeds: fold RMSEs and error norms averaged over seeds feed the t-tests;
+    the seed spread is the sample sd of each seed's mean RMSE; Table 3 shows it."""
+    base = pred[pred["method"] == "won2009"]
+    seeded = []
+    for seed, shift in ((0, 0.0), (1, 0.01), (2, -0.02)):
+        copy = base.assign(seed=seed, method="net")
+        copy[["yhat_x", "yhat_y", "yhat_z"]] += shift
+        seeded.append(copy)
+    table = pd.concat([pred.assign(seed=0), *seeded], ignore_index=True)
+    summary = summarise(table)
+    for dataset, _ in DATASETS:
+        v = summary["datasets"][dataset]["methods"]["net"]
+        per_seed = []
+        norms = []
+        for part in seeded:
+            p = part[part["dataset"] == dataset].sort_values(["fold", "window_id"])
+            e = p[["yhat_x", "yhat_y", "yhat_z"]].to_numpy() - p[["y_x", "y_y", "y_z"]].to_numpy()
+            f = p["fold"].to_numpy()
+            per_seed.append([np.sqrt(np.mean(np.sum(e[f == k] ** 2, axis=1))) for k in range(N_FOLDS)])
+            norms.append(np.linalg.norm(e, axis=1))
+        per_seed = np.array(per_seed)
+        assert v["seeds"] == [0, 1, 2]
+        np.testing.assert_allclose(v["rmse_folds"], per_seed.mean(axis=0), rtol=1e-5)
+        np.testing.assert_allclose(v["rmse_seeds"], per_seed.mean(axis=1), rtol=1e-5)
+        assert v["rmse_seed_std"] == pytest.approx(np.std(per_seed.mean(axis=1), ddof=1), rel=1e-5)
+        assert v["rmse_mean"] == pytest.approx(per_seed.mean(), rel=1e-5)
+        ls = summary["datasets"][dataset]["methods"]["ls-trf"]
+        t_fold, _ = paired_t(np.array(ls["rmse_folds"]), per_seed.mean(axis=0))
+        assert v["t_test"]["ls-trf"]["fold"]["t"] == pytest.approx(t_fold, rel=1e-4)
+        p_ls = pred[(pred["dataset"] == dataset) & (pred["method"] == "ls-trf")].sort_values(["fold", "window_id"])
+        e_ls = p_ls[["yhat_x", "yhat_y", "yhat_z"]].to_numpy() - p_ls[["y_x", "y_y", "y_z"]].to_numpy()
+        t_sig, _ = paired_t(np.linalg.norm(e_ls, axis=1), np.mean(norms, axis=0))
+        assert v["t_test"]["ls-trf"]["signal"]["t"] == pytest.approx(t_sig, rel=1e-4)
+        assert summary["datasets"][dataset]["n_signals"] == N_FOLDS * N_PER_FOLD
+    table3 = table3_markdown(summary)
+    assert " ± " in table3 and "(3 seeds)" in table3 and "net: trained with several seeds" in table3

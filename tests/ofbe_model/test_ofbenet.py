@@ -33,7 +33,7 @@ from ofbe_model.ofbenet import (
     feature_length,
     group_validation_split,
 )
-from ofbe_model.train_cli import dataset_dirname, main, read_params
+from ofbe_model.train_cli import dataset_dirname, main, read_params, read_seed_count
 
 T = 200
 G = 9.81
@@ -314,9 +314,9 @@ def tiny(tmp_path_factory) -> Path:
 def test_ofbe_train_writes_models_curves_and_summary(tiny, tmp_path, capsys) -> None:
     out = tmp_path / "models"
     base = [str(tiny), "--protocol", "grouped", "--out", str(out), "--max-epochs", "2"]
-    assert main([*base, "--folds", "0"]) == 0
+    assert main([*base, "--folds", "0", "--seeds", "2"]) == 0
     err = capsys.readouterr().err
-    assert "c/d1 grouped fold 0" in err and "c/d2 grouped fold 0" in err
+    assert "c/d1 grouped fold 0 seed 0" in err and "c/d2 grouped fold 0 seed 1" in err
     assert main([*base, "--folds", "1", "--quiet"]) == 0
     assert capsys.readouterr().err == ""
     for dev in ("d1", "d2"):
@@ -324,20 +324,39 @@ def test_ofbe_train_writes_models_curves_and_summary(tiny, tmp_path, capsys) -> 
         assert folder.name == "grouped" and folder.parent.name == f"c__{dev}"
         summary = json.loads((folder / "training.json").read_text())
         assert summary["dataset"] == f"c/{dev}" and summary["protocol"] == "grouped"
-        assert [f["fold"] for f in summary["folds"]] == [0, 1]  # the second run kept fold 0
+        # the second run kept fold 0's two seeds
+        assert [(f["fold"], f["seed"]) for f in summary["folds"]] == [(0, 0), (0, 1), (1, 0)]
         for entry in summary["folds"]:
-            k = entry["fold"]
+            k, seed = entry["fold"], entry["seed"]
+            assert entry["params"]["seed"] == seed and entry["model"] == f"fold-{k}.seed-{seed}.keras"
             assert entry["epochs_run"] <= 2 and entry["n_train"] + entry["n_val"] == 16
             assert entry["n_test"] == 2 and entry["seconds"] > 0 and np.isfinite(entry["best_val_loss"])
-            history = pd.read_csv(folder / f"fold-{k}.history.csv")
+            history = pd.read_csv(folder / f"fold-{k}.seed-{seed}.history.csv")
             assert list(history.columns) == ["epoch", "loss", "val_loss", "learning_rate"]
             assert len(history) == entry["epochs_run"]
             png = folder / f"fold-{k}.training.png"
             assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and mpimg.imread(png)[..., :3].std() > 0.05
-            model = OFBENet.load(folder / f"fold-{k}.keras")
+            model = OFBENet.load(folder / entry["model"])
             x = np.zeros((2, T, 3), dtype=np.float32)
             assert model.predict(x, pd.DataFrame({"device": [dev] * 2, "g_local": G})).shape == (2, 3)
+        # two seeds are two different models
+        x = np.random.default_rng(0).normal(0.0, 1.0, (2, T, 3)).astype(np.float32) + np.array([0, 0, G], np.float32)
+        m = pd.DataFrame({"device": [dev] * 2, "g_local": G})
+        p0 = OFBENet.load(folder / "fold-0.seed-0.keras").predict(x, m)
+        p1 = OFBENet.load(folder / "fold-0.seed-1.keras").predict(x, m)
+        assert not np.allclose(p0, p1)
         assert not [p for p in folder.iterdir() if p.name.startswith(".")]  # no temporaries
+
+
+def test_seed_count_from_params_and_flag(write_text) -> None:
+    assert read_seed_count(None) == 1
+    assert read_seed_count(write_text("s.yaml", "train:\n  seeds: 3\n")) == 3
+    assert read_seed_count(write_text("s2.yaml", "train:\n  seeds: 3\n"), seeds=5) == 5
+    assert read_params(write_text("s3.yaml", "train:\n  seeds: 3\n  dropout: 0.1\n")).dropout == 0.1
+    with pytest.raises(ConfigError, match=r"train\.seeds.*an integer >= 1.*0"):
+        read_seed_count(write_text("bad.yaml", "train:\n  seeds: 0\n"))
+    with pytest.raises(ConfigError, match=r"--seeds"):
+        read_seed_count(None, seeds=-2)
 
 
 def test_ofbe_train_usage_errors_exit_2(tiny, tmp_path, capsys, write_text) -> None:

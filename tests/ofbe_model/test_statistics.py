@@ -121,7 +121,7 @@ def test_critical_value() -> None:
 
 def test_fold_metrics_by_hand() -> None:
     fm = fold_metrics(small_table())
-    assert list(fm.columns) == ["dataset", "method", "fold", "rmse", "max_error", "n"]
+    assert list(fm.columns) == ["dataset", "method", "seed", "fold", "rmse", "max_error", "n"]
     assert fm[["method", "fold"]].values.tolist() == [["a", 0], ["a", 1], ["b", 0], ["b", 1]]
     # a, fold 0: norms 5 and 0; fold 1: norms 3 and 1
     np.testing.assert_allclose(fm["rmse"], [math.sqrt(25 / 2), math.sqrt(10 / 2), math.sqrt(5 / 2),
