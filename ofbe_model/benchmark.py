@@ -174,7 +174,8 @@ def run_protocol(dataset: str | Path, protocol: str, params: BenchmarkParams | N
             t0 = time.perf_counter()
             for seed, est, fitted in _estimators(method, split, protocol, params, models, truth):
                 if est.needs_fit and not fitted:
-                    est.fit(ds.X[split.train], ds.y[split.train], blind.iloc[split.train].reset_index(drop=True))
+                    est.fit(ds.X[split.train], ds.y[split.train],
+                            blind.iloc[split.train].reset_index(drop=True))
                 test_meta = blind.iloc[split.test].reset_index(drop=True)
                 yhat = np.asarray(est.predict(ds.X[split.test], test_meta), dtype=np.float64)
                 std = (np.asarray(est.predict_std(ds.X[split.test], test_meta), dtype=np.float64)

@@ -13,8 +13,8 @@ report: a pandas DataFrame with one row per (method, test signal) and the column
   times (OFBENet); such a method has one row per seed and signal.
 
 The design is paired: every method (and every seed of it) has exactly the same (dataset,
-fold, window_id) rows, with the same labels, so per-signal and per-fold values of two methods can be compared pairwise
-(:func:`check_predictions` enforces it).
+fold, window_id) rows, with the same labels, so per-signal and per-fold values of two methods
+can be compared pairwise (:func:`check_predictions` enforces it).
 
 Conventions
 -----------

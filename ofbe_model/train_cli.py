@@ -330,8 +330,9 @@ def train(dataset: str | Path, protocol: str, out: str | Path, params: OFBENetPa
             for seed in seed_list:
                 done += 1
                 if progress:
-                    print(f"{PROG}: [{done}/{total}] {name} {protocol} fold {split.fold} seed {seed}: training on "
-                          f"{split.train.size} windows (test signals held out: {split.test.size})",
+                    print(f"{PROG}: [{done}/{total}] {name} {protocol} fold {split.fold} seed {seed}: "
+                          f"training on {split.train.size} windows "
+                          f"(test signals held out: {split.test.size})",
                           file=sys.stderr, flush=True)
                 fold_params = dataclasses.replace(params, seed=seed)
                 entry, histories[seed] = train_fold(ds.X, ds.y, meta, split, fold_params, folder,
@@ -344,7 +345,8 @@ def train(dataset: str | Path, protocol: str, out: str | Path, params: OFBENetPa
                 write_bytes_atomic(summary_path,
                                    (json.dumps(summary, indent=2, allow_nan=False) + "\n").encode())
                 if progress:
-                    best = entry["best_val_loss"] if entry["best_val_loss"] is not None else entry["best_loss"]
+                    best = entry["best_val_loss"]
+                    best = entry["best_loss"] if best is None else best
                     print(f"{PROG}: {name} fold {split.fold} seed {seed}: {entry['epochs_run']} epochs "
                           f"(kept {entry['best_epoch']}, loss {best:.4g}) in {entry['seconds']:.1f} s "
                           f"-> {folder / entry['model']}",
@@ -371,7 +373,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--folds", type=int, nargs="+", metavar="K", help="train only these folds (default: all)")
     p.add_argument("--max-epochs", type=int, help="override train.max_epochs")
     p.add_argument("--seeds", type=int, metavar="N",
-                   help="train every fold with N seeds (train.seed … train.seed + N − 1; override train.seeds)")
+                   help="train every fold with N seeds (train.seed … train.seed + N − 1; "
+                        "overrides train.seeds)")
     p.add_argument("--params", help="YAML file whose 'train:' section sets the OFBENet parameters")
     p.add_argument("--quiet", action="store_true", help="no progress (per-fold and per-epoch lines)")
     return p

@@ -16,7 +16,6 @@ from matplotlib.container import BarContainer
 from scipy import stats
 
 from ofbe_model import benchmark_report as br
-from ofbe_model.statistics import paired_t
 from ofbe_model.benchmark_report import (
     max_error_figure,
     ordered_methods,
@@ -26,6 +25,7 @@ from ofbe_model.benchmark_report import (
     table3_markdown,
     write_report,
 )
+from ofbe_model.statistics import paired_t
 
 DATASETS = (("gravity-aligned", "imu-1,imu-2,imu-3"), ("rotated/sparkfun-1", "sparkfun-1"))
 METHODS = {"ls-trf": 0.05, "won2009": 0.04, "gravity-prior": 0.012, "oracle": 0.01}
@@ -396,7 +396,8 @@ def test_several_seeds_are_averaged_before_the_tests(pred: pd.DataFrame) -> None
         ls = summary["datasets"][dataset]["methods"]["ls-trf"]
         t_fold, _ = paired_t(np.array(ls["rmse_folds"]), per_seed.mean(axis=0))
         assert v["t_test"]["ls-trf"]["fold"]["t"] == pytest.approx(t_fold, rel=1e-4)
-        p_ls = pred[(pred["dataset"] == dataset) & (pred["method"] == "ls-trf")].sort_values(["fold", "window_id"])
+        p_ls = pred[(pred["dataset"] == dataset) & (pred["method"] == "ls-trf")]
+        p_ls = p_ls.sort_values(["fold", "window_id"])
         e_ls = p_ls[["yhat_x", "yhat_y", "yhat_z"]].to_numpy() - p_ls[["y_x", "y_y", "y_z"]].to_numpy()
         t_sig, _ = paired_t(np.linalg.norm(e_ls, axis=1), np.mean(norms, axis=0))
         assert v["t_test"]["ls-trf"]["signal"]["t"] == pytest.approx(t_sig, rel=1e-4)

@@ -340,7 +340,8 @@ def test_ofbe_train_writes_models_curves_and_summary(tiny, tmp_path, capsys) -> 
             x = np.zeros((2, T, 3), dtype=np.float32)
             assert model.predict(x, pd.DataFrame({"device": [dev] * 2, "g_local": G})).shape == (2, 3)
         # two seeds are two different models
-        x = np.random.default_rng(0).normal(0.0, 1.0, (2, T, 3)).astype(np.float32) + np.array([0, 0, G], np.float32)
+        x = np.random.default_rng(0).normal(0.0, 1.0, (2, T, 3)).astype(np.float32)
+        x += np.array([0, 0, G], np.float32)
         m = pd.DataFrame({"device": [dev] * 2, "g_local": G})
         p0 = OFBENet.load(folder / "fold-0.seed-0.keras").predict(x, m)
         p1 = OFBENet.load(folder / "fold-0.seed-1.keras").predict(x, m)
