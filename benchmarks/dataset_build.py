@@ -27,9 +27,9 @@ from pathlib import Path
 CHILD = r"""
 import json, resource, sys, time
 from pathlib import Path
-from ofbe_data.datasets import DatasetParams, build_dataset
-from ofbe_data.labelstore import read_labels
-from ofbe_data.windows import iter_windows
+from ofbe_data.dataset.build import DatasetParams, build_dataset
+from ofbe_data.labelling.store import read_labels
+from ofbe_data.dataset.windows import iter_windows
 mode, labels, raw, out, jobs = sys.argv[1:6]
 t = time.perf_counter()
 n = 0

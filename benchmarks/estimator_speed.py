@@ -17,8 +17,8 @@ import time
 import numpy as np
 
 from ofbe_data import load_dataset
-from ofbe_model.base import make_estimator
-from ofbe_model.benchmark import DEFAULT_VARIANTS
+from ofbe_model.benchmark.runner import DEFAULT_VARIANTS
+from ofbe_model.estimators.base import make_estimator
 
 METHODS = ("level-mean", "ls-trf", "ls-trf-as-written", "ls-trf-bounded", "won2009", "prior-mean",
            "gravity-prior", "gravity-prior-direction", "ofbenet", "oracle")

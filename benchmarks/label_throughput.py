@@ -36,9 +36,9 @@ from pathlib import Path
 import pyarrow as pa
 import pyarrow.csv as pacsv
 
-from ofbe_data.label_cli import Outcome, expand_sessions, label_sessions
-from ofbe_data.labels import LabelParams
-from ofbe_data.manifest import load_manifest
+from ofbe_data.io.manifest import load_manifest
+from ofbe_data.labelling.batch import Outcome, expand_sessions, label_sessions
+from ofbe_data.labelling.labels import LabelParams
 from ofbe_data.simulator import simulate_campaign
 
 CAMPAIGNS = ("gravity-aligned", "rotated")

@@ -13,8 +13,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from ofbe_data.manifest import load_manifest
-from ofbe_data.rawio import read_device_file
+from ofbe_data.io.formats import read_device_file
+from ofbe_data.io.manifest import load_manifest
 from ofbe_data.simulator import simulate_campaign
 
 BUDGET_S = 60.0

@@ -17,9 +17,6 @@ error.
 
 from __future__ import annotations
 
-import argparse
-import json
-import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,13 +25,15 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ofbe_data.errors import OfbeError
-from ofbe_data.gravity import G0 as STANDARD_GRAVITY
-from ofbe_data.manifest import MANIFEST_NAME, load_manifest
-from ofbe_data.rawio import read_device_file, read_mscip_csv, read_ofbe_logger
-from ofbe_data.recording import Recording
-from ofbe_data.stationarity import StaticParams, check_static, longest_run
-from ofbe_model.base import Estimator, EstimatorError
+from ofbe_data.core.errors import OfbeError
+from ofbe_data.io.formats import read_device_file
+from ofbe_data.io.formats.mscip_csv import read_mscip_csv
+from ofbe_data.io.formats.ofbe_logger import read_ofbe_logger
+from ofbe_data.io.gravity import G0 as STANDARD_GRAVITY
+from ofbe_data.io.manifest import MANIFEST_NAME, load_manifest
+from ofbe_data.io.recording import Recording
+from ofbe_data.labelling.stationarity import StaticParams, check_static, longest_run
+from ofbe_model.estimators.base import Estimator, EstimatorError
 
 DEFAULT_WINDOW = 3000
 
@@ -60,11 +59,11 @@ def load_model(path: str | Path) -> Estimator:
     """
     path = Path(path)
     if path.suffix == ".keras":
-        from ofbe_model.ofbenet import OFBENet
+        from ofbe_model.ofbenet.network import OFBENet
 
         return OFBENet.load(path)
     if path.suffix == ".json":
-        from ofbe_model.estimators import GravityPrior
+        from ofbe_model.estimators.priors import GravityPrior
 
         return GravityPrior.load(path)
     raise EstimatorError(f"{path}: expected a saved OFBENet (.keras) or gravity-prior (.json), "
@@ -167,57 +166,3 @@ def predict(model: Estimator, items: Sequence[Target], length: int) -> list[dict
     return results
 
 
-def _table(results: Sequence[dict[str, Any]], method: str) -> str:
-    g0 = 9.80665e-3
-    head = "".join(f"{h:>9}" for h in ("bias x", "bias y", "bias z")) + "".join(
-        f"{h:>8}" for h in ("std x", "std y", "std z"))
-    lines = [f"{'device':<14}{head}  file   ({method}; mg)"]
-    for r in results:
-        if "error" in r:
-            lines.append(f"{r['device']:<14}{'—':>9}{'—':>9}{'—':>9}{'':>24}  {r['file']}: {r['error']}")
-            continue
-        b = [v / g0 for v in r["bias_m_s2"]]
-        s = ["" if r["std_m_s2"] is None else f"{v / g0:.2f}" for v in (r["std_m_s2"] or [None] * 3)]
-        cells = "".join(f"{v:9.2f}" for v in b) + "".join(f"{v:>8}" for v in s)
-        lines.append(f"{r['device']:<14}{cells}  {r['file']}")
-    return "\n".join(lines)
-
-
-def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="ofbe-predict",
-                                description="Bias (and its standard deviation, where the method has one) of "
-                                            "stationary recordings from a saved OFBENet or gravity-prior.")
-    p.add_argument("model", help="saved model: .keras (OFBENet) or .json (gravity-prior)")
-    p.add_argument("recordings", nargs="+", help="session folders or raw device files")
-    p.add_argument("--device", help="device id for bare files (gravity-prior uses its per-device prior)")
-    p.add_argument("--g-local", type=float,
-                   help=f"local gravity for bare files, m/s² (default {STANDARD_GRAVITY})")
-    p.add_argument("--window-length", type=int, help="samples per window for models that take any length "
-                                                     f"(default {DEFAULT_WINDOW})")
-    p.add_argument("--output", choices=("json", "table"), default="json")
-    return p
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    args = _parser().parse_args(argv)
-    try:
-        model = load_model(args.model)
-        length = window_length_of(model) or args.window_length or DEFAULT_WINDOW
-        items = targets(args.recordings, args.device, args.g_local)
-        results = predict(model, items, length)
-    except OfbeError as exc:
-        print(f"ofbe-predict: error: {exc}", file=sys.stderr)
-        return 2 if isinstance(exc, EstimatorError) else 1
-    method = getattr(model, "name", type(model).__name__)
-    if args.output == "json":
-        print(json.dumps({"model": str(args.model), "method": method, "results": results}, indent=1))
-    else:
-        print(_table(results, method))
-    failed = [r for r in results if "error" in r]
-    for r in failed:
-        print(f"ofbe-predict: error: {r['file']}: {r['error']}", file=sys.stderr)
-    return 1 if failed else 0
-
-
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())

@@ -1,15 +1,15 @@
 """DVC stage ``benchmark``: every estimator on every fold of each protocol, one report each.
 
 Reads ``benchmark`` (methods, baselines, estimator parameters) and ``benchmark_run``
-(protocol → datasets) from params.yaml; all logic lives in :mod:`ofbe_model.benchmark`.
+(protocol → datasets) from params.yaml; all logic lives in :mod:`ofbe_model.benchmark.runner`.
 """
 
 from __future__ import annotations
 
 import sys
 
-from ofbe_data.pipeline_params import load_params, resolved_params_file, timed
-from ofbe_model.benchmark import main as benchmark_main
+from ofbe_data.io.pipeline_params import load_params, resolved_params_file, timed
+from ofbe_model.cli.benchmark import main as benchmark_main
 
 
 def main(params_file: str = "params.yaml") -> int:

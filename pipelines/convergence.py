@@ -2,15 +2,15 @@
 
 Reads ``label`` (labelling parameters, less ``min_samples``), ``convergence`` (the
 recommendation rule) and ``convergence_run`` (campaigns, worker processes) from
-params.yaml; all logic lives in :mod:`ofbe_model.convergence_report`.
+params.yaml; all logic lives in :mod:`ofbe_data.reports.convergence`.
 """
 
 from __future__ import annotations
 
 import sys
 
-from ofbe_data.pipeline_params import load_params, resolved_params_file, timed
-from ofbe_model.convergence_report import main as convergence_main
+from ofbe_data.cli.convergence import main as convergence_main
+from ofbe_data.io.pipeline_params import load_params, resolved_params_file, timed
 
 
 def main(params_file: str = "params.yaml") -> int:

@@ -1,15 +1,15 @@
 """DVC stage ``datasets``: one windowed dataset per labelled campaign in processed/datasets.
 
 Reads ``dataset`` (windowing, folds, protocols) and ``dataset_run`` (campaigns, worker
-processes) from params.yaml; all logic lives in :mod:`ofbe_data.dataset_cli`.
+processes) from params.yaml; all logic lives in :mod:`ofbe_data.cli.dataset`.
 """
 
 from __future__ import annotations
 
 import sys
 
-from ofbe_data.dataset_cli import main as dataset_main
-from ofbe_data.pipeline_params import load_params, resolved_params_file, timed
+from ofbe_data.cli.dataset import main as dataset_main
+from ofbe_data.io.pipeline_params import load_params, resolved_params_file, timed
 
 
 def main(params_file: str = "params.yaml") -> int:

@@ -2,15 +2,15 @@
 
 Reads ``profile``, ``label_run`` (campaigns) and ``benchmark_run`` (protocols) from
 params.yaml and the stage times the other entries recorded in .ofbe/timings.json; all
-logic lives in :mod:`ofbe_model.index_report`.
+logic lives in :mod:`ofbe_data.reports.index`.
 """
 
 from __future__ import annotations
 
 import sys
 
-from ofbe_data.pipeline_params import TIMINGS_FILE, load_params
-from ofbe_model.index_report import main as index_main
+from ofbe_data.cli.index import main as index_main
+from ofbe_data.io.pipeline_params import TIMINGS_FILE, load_params
 
 
 def main(params_file: str = "params.yaml") -> int:

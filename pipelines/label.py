@@ -2,15 +2,15 @@
 
 Reads ``label`` (labelling parameters) and ``label_run`` (campaigns, worker processes, and
 the convergence report whose recommendation is ``label.min_samples`` unless ``label`` sets
-it) from params.yaml; all logic lives in :mod:`ofbe_data.label_cli`.
+it) from params.yaml; all logic lives in :mod:`ofbe_data.cli.label`.
 """
 
 from __future__ import annotations
 
 import sys
 
-from ofbe_data.label_cli import main as label_main
-from ofbe_data.pipeline_params import load_params, resolved_params_file, timed
+from ofbe_data.cli.label import main as label_main
+from ofbe_data.io.pipeline_params import load_params, resolved_params_file, timed
 
 
 def main(params_file: str = "params.yaml") -> int:

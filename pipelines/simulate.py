@@ -1,7 +1,7 @@
 """DVC stage ``simulate``: write the default simulated campaigns into raw/.
 
 Reads ``simulate`` from params.yaml (with its profile applied,
-:mod:`ofbe_data.pipeline_params`); all logic lives in :mod:`ofbe_data.simulator`.
+:mod:`ofbe_data.io.pipeline_params`); all logic lives in :mod:`ofbe_data.simulator`.
 """
 
 from __future__ import annotations
@@ -9,8 +9,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from ofbe_data.errors import OfbeError
-from ofbe_data.pipeline_params import load_params, timed
+from ofbe_data.core.errors import OfbeError
+from ofbe_data.io.pipeline_params import load_params, timed
 from ofbe_data.simulator import load_config, simulate_campaign
 
 

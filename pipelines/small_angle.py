@@ -1,14 +1,14 @@
 """DVC stage ``small_angle``: the levelled-calibration gravity-leak report.
 
-Reads ``small_angle`` from params.yaml; all logic lives in :mod:`ofbe_model.small_angle_report`.
+Reads ``small_angle`` from params.yaml; all logic lives in :mod:`ofbe_data.reports.small_angle`.
 """
 
 from __future__ import annotations
 
 import sys
 
-from ofbe_data.pipeline_params import load_params, timed
-from ofbe_model.small_angle_report import main as small_angle_main
+from ofbe_data.cli.small_angle import main as small_angle_main
+from ofbe_data.io.pipeline_params import load_params, timed
 
 
 def main(params_file: str = "params.yaml") -> int:

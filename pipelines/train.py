@@ -1,15 +1,15 @@
 """DVC stage ``train``: OFBENet per benchmark dataset, protocol and fold into models/.
 
 Reads ``train`` (OFBENet parameters) and ``benchmark_run`` (which protocols run on which
-datasets) from params.yaml; all logic lives in :mod:`ofbe_model.train_cli`.
+datasets) from params.yaml; all logic lives in :mod:`ofbe_model.ofbenet.training`.
 """
 
 from __future__ import annotations
 
 import sys
 
-from ofbe_data.pipeline_params import load_params, resolved_params_file, timed
-from ofbe_model.train_cli import main as train_main
+from ofbe_data.io.pipeline_params import load_params, resolved_params_file, timed
+from ofbe_model.cli.train import main as train_main
 
 
 def main(params_file: str = "params.yaml") -> int:

@@ -19,11 +19,15 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from ofbe_data.datasets import build_dataset, dataset_params_from
-from ofbe_data.datastore import export_dataset, verify_dataset
-from ofbe_data.errors import ConfigError, OfbeError
-from ofbe_data.fidelity import truth_dir_of
-from ofbe_data.typedconfig import read_section
+from ofbe_data.core.cli import add_jobs, add_params, fail
+from ofbe_data.core.errors import ConfigError, OfbeError
+from ofbe_data.dataset.build import build_dataset, dataset_params_from
+from ofbe_data.dataset.export import export_dataset
+from ofbe_data.dataset.fidelity import truth_dir_of
+from ofbe_data.dataset.reader import verify_dataset
+from ofbe_data.io.typedconfig import read_section
+
+PROG = "ofbe-dataset"
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -36,12 +40,12 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--raw", required=True, help="the raw campaign folder the labels were made from")
     b.add_argument("--out", help="dataset folder (default: processed/datasets/<campaign>)")
     b.add_argument("--name", help="dataset name (default: the campaign)")
-    b.add_argument("--params", help="YAML file whose 'dataset:' section sets windowing, folds and protocols")
+    add_params(b, "dataset", "windowing, folds and protocols")
     b.add_argument("--window-length", type=int, help="override dataset.window_length (samples)")
     b.add_argument("--stride", type=int, help="override dataset.stride (samples)")
     b.add_argument("--truth", help="the simulator's truth folder (default: the raw campaign's own, when "
                                    "present): the card then states the label fidelity")
-    b.add_argument("--jobs", type=int, default=1, help="worker processes reading raw files")
+    add_jobs(b, "worker processes reading raw files")
     b.add_argument("--force", action="store_true", help="replace an existing dataset folder")
     b.add_argument("--quiet", action="store_true", help="no progress bar, no summary")
     v = sub.add_parser("verify", help="check a dataset's checksums, schema version and consistency")
@@ -57,11 +61,6 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
-def _fail(message: str, code: int) -> int:
-    print(f"ofbe-dataset: error: {message}", file=sys.stderr)
-    return code
-
-
 def _build(args: argparse.Namespace) -> int:
     try:
         data = dict(read_section(args.params, "dataset")) if args.params else {}
@@ -75,12 +74,12 @@ def _build(args: argparse.Namespace) -> int:
         labels, raw = Path(args.labels), Path(args.raw)
         for path, what in ((labels, "label folder"), (raw, "raw campaign folder")):
             if not path.is_dir():
-                return _fail(f"{path}: expected a {what}, found no such folder", 2)
+                return fail(PROG, f"{path}: expected a {what}, found no such folder", 2)
     except OfbeError as exc:
-        return _fail(str(exc), 2)
+        return fail(PROG, str(exc), 2)
     truth = Path(args.truth) if args.truth else truth_dir_of(raw)
     if truth is not None and not truth.is_dir():
-        return _fail(f"{truth}: expected the simulator's truth folder, found no such folder", 2)
+        return fail(PROG, f"{truth}: expected the simulator's truth folder, found no such folder", 2)
     out = Path(args.out) if args.out else Path("processed/datasets") / (args.name or labels.name)
     try:
         result = build_dataset(labels, raw, out, params, name=args.name,
@@ -88,7 +87,7 @@ def _build(args: argparse.Namespace) -> int:
                                jobs=min(args.jobs, os.cpu_count() or 1), force=args.force,
                                progress=not args.quiet)
     except OfbeError as exc:
-        return _fail(str(exc), 1)
+        return fail(PROG, str(exc), 1)
     if not args.quiet:
         print(f"ofbe-dataset: {result.n_windows} windows from {result.n_recordings} recordings "
               f"({len(result.excluded)} too short), protocols {', '.join(result.protocols)} -> {result.path}",
@@ -111,7 +110,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"ofbe-dataset: exported {args.path} -> {dest}", file=sys.stderr)
         return 0
     except OfbeError as exc:
-        return _fail(str(exc), 1)
+        return fail(PROG, str(exc), 1)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -6,12 +6,8 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-from ofbe_data.errors import OfbeError
-
-
-def _fail(prog: str, message: str) -> int:
-    print(f"{prog}: error: {message}", file=sys.stderr)
-    return 2
+from ofbe_data.core.cli import EXIT_USAGE, add_jobs, fail
+from ofbe_data.core.errors import OfbeError
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -34,19 +30,19 @@ def main(argv: Sequence[str] | None = None) -> int:
                              "'profile' and override any of its keys)")
     parser.add_argument("--out", required=True, help="campaign folder to create, raw/<campaign>")
     parser.add_argument("--seed", type=int, default=None, help="seed (default: the config's)")
-    parser.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
+    add_jobs(parser)
     parser.add_argument("--force", action="store_true", help="replace an existing --out folder")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
     if args.jobs < 1:
-        return _fail(parser.prog, f"--jobs: expected an integer >= 1, found {args.jobs}")
+        return fail(parser.prog, f"--jobs: expected an integer >= 1, found {args.jobs}", EXIT_USAGE)
     try:
         result = simulate_campaign(args.config, args.out, seed=args.seed, jobs=args.jobs,
                                    force=args.force, progress=not args.quiet)
     except OfbeError as exc:
-        return _fail(parser.prog, str(exc))
+        return fail(parser.prog, str(exc), EXIT_USAGE)
     except OSError as exc:
-        return _fail(parser.prog, f"{exc.filename or args.out}: {exc.strerror or exc}")
+        return fail(parser.prog, f"{exc.filename or args.out}: {exc.strerror or exc}", EXIT_USAGE)
     print(f"{result.folder}: campaign {result.campaign}, seed {result.seed}, "
           f"{result.sessions} sessions, {result.files} files, {result.bytes / 1e6:.1f} MB")
     return 0

@@ -56,7 +56,7 @@ class RawFormatError(OfbeError):
 
     Raised for structural problems (missing header, wrong columns, no data); single
     garbled data lines are not errors but counted and skipped (see
-    :class:`ofbe_data.recording.ReadDiagnostics`).
+    :class:`ofbe_data.io.recording.ReadDiagnostics`).
     """
 
     def __init__(

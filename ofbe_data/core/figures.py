@@ -18,7 +18,7 @@ matplotlib.use("Agg")  # no display is needed or assumed
 import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 
-from ofbe_data.atomic import write_bytes_atomic  # noqa: E402
+from ofbe_data.core.atomic import write_bytes_atomic  # noqa: E402
 
 DPI = 200
 """Resolution of the written PNGs, dots per inch."""

@@ -1,4 +1,7 @@
-"""Products of 3-vectors and 3×3 matrices without BLAS, for values that are written to files.
+"""3-vector geometry shared by the simulator and the labeller: products without BLAS, unit
+vectors, roll and pitch.
+
+Products of 3-vectors and 3×3 matrices without BLAS, for values that are written to files.
 
 ``A @ B`` goes through BLAS, whose kernel is chosen by the processor (and by
 ``OPENBLAS_CORETYPE``): one kernel fuses multiply and add, another does not, so the last bit
@@ -55,3 +58,38 @@ def norm3(v: np.ndarray) -> np.ndarray:
     """Euclidean norm of (..., 3) vectors, same on every machine (``np.linalg.norm`` of a
     1-D array is a BLAS dot product)."""
     return np.sqrt(dot3(v, v))
+
+
+VERTICAL = np.array([0.0, 0.0, 1.0])
+"""Unit specific-force direction of a level, z-up sensor."""
+
+
+def unit(v: np.ndarray) -> np.ndarray:
+    """``v / ‖v‖`` for a (3,) vector; raises ``ValueError`` for a zero vector."""
+    v = np.asarray(v, dtype=np.float64)
+    n = float(norm3(v))
+    if not n > 0.0:
+        raise ValueError(f"cannot normalise a zero-length vector {v.tolist()}")
+    return v / n
+
+
+def roll_pitch(u: np.ndarray) -> tuple[float, float]:
+    """Roll and pitch (degrees) of a specific-force direction.
+
+    The inverse of ``u = [−sin θ, sin φ·cos θ, cos φ·cos θ]`` (roll φ about x, pitch θ
+    about y, z up at zero).
+
+    Parameters
+    ----------
+    u
+        (3,) specific-force direction (any length).
+
+    Returns
+    -------
+    roll_deg, pitch_deg
+        Roll in (−180, 180], pitch in [−90, 90].
+    """
+    u = unit(u)
+    roll = np.degrees(np.arctan2(u[1], u[2]))
+    pitch = np.degrees(np.arcsin(np.clip(-u[0], -1.0, 1.0)))
+    return float(roll), float(pitch)

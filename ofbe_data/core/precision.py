@@ -13,7 +13,7 @@ below anything physical (docs/formats.md lists it):
 - times: 1e-9 s; clock drift 1e-6 ppm; sample rates 1e-9 Hz;
 - condition numbers: 9 significant digits.
 
-Values computed without BLAS (the simulator's products, see :mod:`ofbe_data.linalg3`) are
+Values computed without BLAS (the simulator's products, see :mod:`ofbe_data.core.geometry`) are
 the same on every machine already; rounding them too keeps one rule for every file.
 """
 

@@ -1,12 +1,12 @@
 """Building a dataset: labels + raw files → windows, fold assignments, a shareable folder.
 
 One dataset per campaign (products.md §Dataset). The label rows of the campaign are read
-(:func:`ofbe_data.labelstore.read_labels`); recordings whose stationary segment is shorter
+(:func:`ofbe_data.labelling.store.read_labels`); recordings whose stationary segment is shorter
 than one window are left out (and listed); the protocols that apply to the campaign's kind
-assign 5-fold test folds at the recording level (:mod:`ofbe_data.splits`); then the raw
-files are read again session by session (:mod:`ofbe_data.windows`), cut into windows and
+assign 5-fold test folds at the recording level (:mod:`ofbe_data.dataset.splits`); then the raw
+files are read again session by session (:mod:`ofbe_data.dataset.windows`), cut into windows and
 streamed into ``windows.h5`` while the per-window metadata accumulates for
-``windows.parquet`` (:mod:`ofbe_data.datastore`). The folder is built under a temporary
+``windows.parquet`` (:mod:`ofbe_data.dataset.store`). The folder is built under a temporary
 name and renamed when complete.
 """
 
@@ -21,14 +21,15 @@ import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
-from ofbe_data.atomic import atomic_directory
-from ofbe_data.datastore import DatasetInfo, WindowWriter, fold_column
-from ofbe_data.errors import ConfigError, OfbeError, OutputExistsError
-from ofbe_data.fidelity import label_fidelity
-from ofbe_data.labelstore import read_labels
-from ofbe_data.splits import PROTOCOLS, SplitParams, assign_folds
-from ofbe_data.typedconfig import from_plain
-from ofbe_data.windows import WindowParams, iter_windows, n_windows
+from ofbe_data.core.atomic import atomic_directory
+from ofbe_data.core.errors import ConfigError, OfbeError, OutputExistsError
+from ofbe_data.dataset.fidelity import label_fidelity
+from ofbe_data.dataset.splits import PROTOCOLS, SplitParams, assign_folds
+from ofbe_data.dataset.store import DatasetInfo, fold_column
+from ofbe_data.dataset.windows import WindowParams, iter_windows, n_windows
+from ofbe_data.dataset.writer import WindowWriter
+from ofbe_data.io.typedconfig import from_plain
+from ofbe_data.labelling.store import read_labels
 
 PROTOCOL_TEXT = {
     "paper-gravity": "The paper's protocol for the gravity-aligned set: per device, recordings dealt at "
@@ -200,8 +201,8 @@ def build_dataset(labels_dir: str | Path, raw_dir: str | Path, out_dir: str | Pa
     ------
     OfbeError
         No labels, several campaigns or kinds in the folder, a protocol that cannot be
-        applied (:class:`ofbe_data.splits.SplitError`), a raw file changed since labelling
-        (:class:`ofbe_data.windows.SegmentError`), or an existing ``out_dir`` without ``force``.
+        applied (:class:`ofbe_data.dataset.splits.SplitError`), a raw file changed since labelling
+        (:class:`ofbe_data.dataset.windows.SegmentError`), or an existing ``out_dir`` without ``force``.
     """
     params = params or DatasetParams()
     labels_dir, raw_dir, out_dir = Path(labels_dir), Path(raw_dir), Path(out_dir)

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ofbe_data.errors import OfbeError
+from ofbe_data.core.errors import OfbeError
 
 MG = 9.80665e-3
 """One milligravity, m/s²."""

@@ -48,7 +48,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from ofbe_data.errors import OfbeError
+from ofbe_data.core.errors import OfbeError
 
 PROTOCOLS = ("paper-gravity", "paper-rotated", "grouped")
 """The valid protocol names, in the order the benchmark reports them."""

@@ -1,6 +1,6 @@
 """Windows: the labelled stationary segments cut into fixed-length model inputs.
 
-A label row (:mod:`ofbe_data.labelstore`) names its raw file, the file's SHA-256 and the
+A label row (:mod:`ofbe_data.labelling.store`) names its raw file, the file's SHA-256 and the
 first and last time stamp of the stationary segment it rests on. This module goes back to
 that raw file (never to another stage's output), checks that it is the file that was
 labelled, takes the same samples, and cuts them into windows of ``T`` samples with stride
@@ -24,10 +24,10 @@ import numpy as np
 import pandas as pd
 from numpy.lib.stride_tricks import sliding_window_view
 
-from ofbe_data.errors import OfbeError
-from ofbe_data.labels import sha256_file
-from ofbe_data.manifest import SessionManifest, load_manifest
-from ofbe_data.rawio import read_device_file
+from ofbe_data.core.errors import OfbeError
+from ofbe_data.io.formats import read_device_file
+from ofbe_data.io.manifest import SessionManifest, load_manifest
+from ofbe_data.labelling.labels import sha256_file
 
 
 class SegmentError(OfbeError):
@@ -170,7 +170,7 @@ def iter_windows(labels: pd.DataFrame, raw_dir: str | Path, params: WindowParams
     Parameters
     ----------
     labels
-        Label rows (:func:`ofbe_data.labelstore.read_labels`), each with its ``session``;
+        Label rows (:func:`ofbe_data.labelling.store.read_labels`), each with its ``session``;
         the session folder is ``raw_dir / session``.
     raw_dir
         The raw campaign folder.

@@ -17,10 +17,10 @@ from typing import Any
 import numpy as np
 import yaml
 
-from ofbe_data.atomic import write_bytes_atomic
-from ofbe_data.errors import ManifestError
-from ofbe_data.gravity import local_gravity
-from ofbe_data.yamlio import FieldPath, YamlDocument, YamlProblem, format_field, read_yaml
+from ofbe_data.core.atomic import write_bytes_atomic
+from ofbe_data.core.errors import ManifestError
+from ofbe_data.io.gravity import local_gravity
+from ofbe_data.io.yamlio import FieldPath, YamlDocument, YamlProblem, format_field, read_yaml
 
 MANIFEST_FORMAT = "ofbe-session/1"
 MANIFEST_NAME = "session.yaml"

@@ -22,15 +22,15 @@ from typing import Any
 
 import yaml
 
-from ofbe_data.errors import ConfigError
-from ofbe_data.typedconfig import deep_merge
+from ofbe_data.core.errors import ConfigError
+from ofbe_data.io.typedconfig import deep_merge
 
 DEFAULT_PROFILE = "paper"
 PROFILE_DIR = Path("pipelines") / "profiles"
 
 
 merge = deep_merge
-"""Profile overrides merge like simulator overrides (:func:`ofbe_data.typedconfig.deep_merge`)."""
+"""Profile overrides merge like simulator overrides (:func:`ofbe_data.io.typedconfig.deep_merge`)."""
 
 
 def _read(path: Path) -> dict[str, Any]:
@@ -92,7 +92,7 @@ def record_time(stage: str, seconds: float, root: str | Path = ".") -> None:
     """Record a stage's wall time, s, in :data:`TIMINGS_FILE` (for reports/index.md)."""
     import json
 
-    from ofbe_data.atomic import write_bytes_atomic
+    from ofbe_data.core.atomic import write_bytes_atomic
 
     path = Path(root) / TIMINGS_FILE
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -2,7 +2,7 @@
 
 Shared by the simulator's configuration and the labelling parameters: every key is checked
 against a dataclass's fields and every value against its annotation, and errors name the key
-(:class:`~ofbe_data.errors.ConfigError`). Written here rather than taken from a validation
+(:class:`~ofbe_data.core.errors.ConfigError`). Written here rather than taken from a validation
 library because the toolkit's records are plain frozen dataclasses and the rules are few.
 """
 
@@ -15,8 +15,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from ofbe_data.errors import ConfigError
-from ofbe_data.yamlio import YamlProblem, read_yaml
+from ofbe_data.core.errors import ConfigError
+from ofbe_data.io.yamlio import YamlProblem, read_yaml
 
 
 def _convert(value: Any, tp: Any, source: str | Path, key: str) -> Any:

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ofbe_data.errors import OfbeError
+from ofbe_data.core.errors import OfbeError
 
 PAPER_WINDOW = 40
 """Number of running-mean steps averaged (paper)."""

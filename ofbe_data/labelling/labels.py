@@ -1,8 +1,8 @@
 """Labelling one session: stationary segments, orientation and the apparent-bias label.
 
 methods.md §Labelling, steps 1–6 and 8, for one session folder. The campaign fit (step 7)
-needs every session of a campaign and lives in :mod:`ofbe_data.campaign_fit`; writing the
-products is :mod:`ofbe_data.labelstore`.
+needs every session of a campaign and lives in :mod:`ofbe_data.labelling.campaign_fit`; writing the
+products is :mod:`ofbe_data.labelling.store`.
 
 Per recording and DUT device:
 
@@ -31,17 +31,17 @@ from typing import Any
 import numpy as np
 
 from ofbe_data import __version__
-from ofbe_data.campaign_fit import CampaignFitParams
-from ofbe_data.convergence import PAPER_THRESHOLD, PAPER_WINDOW, convergence_index
-from ofbe_data.errors import ConfigError
-from ofbe_data.manifest import DeviceSpec, SessionManifest, load_manifest
-from ofbe_data.multiposition import apparent_biases, fit_poses
-from ofbe_data.orientation import apparent_bias, nearest_axis, rodrigues_label, roll_pitch
-from ofbe_data.rawio import read_device_file
-from ofbe_data.recording import Recording
-from ofbe_data.stationarity import StaticParams, check_static, longest_run
-from ofbe_data.sync import SyncError, SyncParams, synchronise, tap_signals
-from ofbe_data.typedconfig import from_plain, read_section
+from ofbe_data.core.errors import ConfigError
+from ofbe_data.io.formats import read_device_file
+from ofbe_data.io.manifest import DeviceSpec, SessionManifest, load_manifest
+from ofbe_data.io.recording import Recording
+from ofbe_data.io.typedconfig import from_plain, read_section
+from ofbe_data.labelling.campaign_fit import CampaignFitParams
+from ofbe_data.labelling.convergence import PAPER_THRESHOLD, PAPER_WINDOW, convergence_index
+from ofbe_data.labelling.multiposition import apparent_biases, fit_poses
+from ofbe_data.labelling.orientation import apparent_bias, nearest_axis, rodrigues_label, roll_pitch
+from ofbe_data.labelling.stationarity import StaticParams, check_static, longest_run
+from ofbe_data.labelling.sync import SyncError, SyncParams, synchronise, tap_signals
 
 LABELS_FORMAT = "ofbe-labels/1"
 REJECTIONS_FORMAT = "ofbe-rejections/1"
@@ -72,7 +72,7 @@ class LabelParams:
     convergence_window, convergence_threshold
         The paper's convergence criterion (steps, m/s²).
     multi_position_model
-        ``offset`` or ``scale-offset`` (:func:`ofbe_data.multiposition.fit_poses`).
+        ``offset`` or ``scale-offset`` (:func:`ofbe_data.labelling.multiposition.fit_poses`).
     multi_position_max_condition
         Largest condition number of a session's pose fit (good pose sets give 1–2, nearly
         coplanar ones thousands).
@@ -393,7 +393,7 @@ def label_session(folder: str | Path, params: LabelParams = LabelParams(), *,
     -------
     SessionLabels
         Rows for the labelled recordings, rejections with reasons, warnings and file hashes.
-        Offsets from the campaign fit are filled later (:mod:`ofbe_data.labelstore`).
+        Offsets from the campaign fit are filled later (:mod:`ofbe_data.labelling.store`).
 
     Raises
     ------

@@ -8,20 +8,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ofbe_data.linalg3 import dot3, mul3, norm3
+from ofbe_data.core.geometry import VERTICAL, dot3, mul3, norm3, roll_pitch, unit
 
-VERTICAL = np.array([0.0, 0.0, 1.0])
-"""Unit specific-force direction of a level, z-up sensor."""
-
-
-def unit(v: np.ndarray) -> np.ndarray:
-    """``v / ‖v‖`` for a (3,) vector; raises ``ValueError`` for a zero vector."""
-    v = np.asarray(v, dtype=np.float64)
-    n = float(norm3(v))
-    if not n > 0.0:
-        raise ValueError(f"cannot normalise a zero-length vector {v.tolist()}")
-    return v / n
-
+__all__ = ["VERTICAL", "apparent_bias", "nearest_axis", "rodrigues", "rodrigues_label",
+           "roll_pitch", "rotation_to_vertical", "skew", "unit"]
 
 def skew(k: np.ndarray) -> np.ndarray:
     """Cross-product matrix ``[k]×`` of a (3,) vector, so that ``skew(k) @ v == k × v``."""
@@ -71,28 +61,6 @@ def rotation_to_vertical(u: np.ndarray) -> np.ndarray:
     if s < 1e-12:
         return np.eye(3) if c > 0 else rodrigues(np.array([1.0, 0.0, 0.0]), np.pi)
     return rodrigues(cross / s, float(np.arctan2(s, c)))
-
-
-def roll_pitch(u: np.ndarray) -> tuple[float, float]:
-    """Roll and pitch (degrees) of a specific-force direction.
-
-    The inverse of ``u = [−sin θ, sin φ·cos θ, cos φ·cos θ]`` (roll φ about x, pitch θ
-    about y, z up at zero).
-
-    Parameters
-    ----------
-    u
-        (3,) specific-force direction (any length).
-
-    Returns
-    -------
-    roll_deg, pitch_deg
-        Roll in (−180, 180], pitch in [−90, 90].
-    """
-    u = unit(u)
-    roll = np.degrees(np.arctan2(u[1], u[2]))
-    pitch = np.degrees(np.arcsin(np.clip(-u[0], -1.0, 1.0)))
-    return float(roll), float(pitch)
 
 
 def nearest_axis(m: np.ndarray) -> np.ndarray:

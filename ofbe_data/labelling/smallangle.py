@@ -6,7 +6,7 @@ its mean reads ``g·u(φ, θ) + b`` with
 
     u(φ, θ) = [−sin θ, sin φ·cos θ, cos φ·cos θ]
 
-(the convention of :func:`ofbe_data.orientation.roll_pitch`), so gravity leaks into the
+(the convention of :func:`ofbe_data.labelling.orientation.roll_pitch`), so gravity leaks into the
 bias estimate by ``leak = g·(u − e_z)``. Expressed in units of g the leak depends on the
 geometry only:
 
@@ -21,7 +21,7 @@ geometry only:
   pitch at a per-axis angle about 1/√2 of that (2.03°).
 
 Everything here is pure numpy/scipy; the figures are drawn by
-:mod:`ofbe_model.small_angle_report`.
+:mod:`ofbe_data.reports.small_angle`.
 """
 
 from __future__ import annotations
@@ -52,7 +52,7 @@ def gravity_direction(roll_deg: float | np.ndarray, pitch_deg: float | np.ndarra
     """Unit specific-force direction of a sensor tilted by roll and pitch.
 
     ``u = [−sin θ, sin φ·cos θ, cos φ·cos θ]``: the exact inverse of
-    :func:`ofbe_data.orientation.roll_pitch` for pitch in (−90°, 90°).
+    :func:`ofbe_data.labelling.orientation.roll_pitch` for pitch in (−90°, 90°).
 
     Parameters
     ----------

@@ -21,10 +21,10 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from ofbe_data import __version__
-from ofbe_data.atomic import write_bytes_atomic
-from ofbe_data.campaign_fit import DeviceFit, fit_device
-from ofbe_data.labels import REJECTIONS_FORMAT, LabelParams, SessionLabels, provenance
-from ofbe_data.precision import ACCEL_DECIMALS, round_floats, round_label_value
+from ofbe_data.core.atomic import write_bytes_atomic
+from ofbe_data.core.precision import ACCEL_DECIMALS, round_floats, round_label_value
+from ofbe_data.labelling.campaign_fit import DeviceFit, fit_device
+from ofbe_data.labelling.labels import REJECTIONS_FORMAT, LabelParams, SessionLabels, provenance
 
 CAMPAIGN_FIT_FORMAT = "ofbe-campaign-fit/1"
 

@@ -23,8 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ofbe_data.linalg3 import mul3
-from ofbe_data.recording import Recording
+from ofbe_data.core.geometry import mul3
+from ofbe_data.io.recording import Recording
 
 
 @dataclass(frozen=True)

@@ -2,7 +2,7 @@
 
 For every labelled (recording, device) the running mean of each axis over the stationary
 segment is followed until the paper's criterion holds (mean of the last 40 |Δ running
-mean| below 5e-6 m/s², :mod:`ofbe_data.convergence`). The report gives the per-axis
+mean| below 5e-6 m/s², :mod:`ofbe_data.labelling.convergence`). The report gives the per-axis
 statistics, the histogram with mean ± 1 std shaded, one example running-mean curve with its
 label, an Allan-deviation figure per device, and the recommended fewest samples per label,
 which the label stage consumes (``reports/convergence/convergence.json``).
@@ -14,12 +14,9 @@ determines; this is also why the report can be made before the label stage.
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import io
 import json
-import os
-import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -29,9 +26,14 @@ import numpy as np
 import pandas as pd
 
 from ofbe_data import __version__
-from ofbe_data.allan import AllanResult, allan_deviation, combine, white_noise_level
-from ofbe_data.atomic import atomic_directory, write_bytes_atomic
-from ofbe_data.convergence import (
+from ofbe_data.core.atomic import atomic_directory, write_bytes_atomic
+from ofbe_data.core.errors import ConfigError, OfbeError
+from ofbe_data.core.figures import new_figure, save_png
+from ofbe_data.core.parallel import map_progress
+from ofbe_data.dataset.windows import load_segments
+from ofbe_data.io.typedconfig import from_plain
+from ofbe_data.labelling.allan import AllanResult, allan_deviation, combine, white_noise_level
+from ofbe_data.labelling.convergence import (
     REPORT_FORMAT,
     STATISTICS,
     AxisConvergence,
@@ -40,13 +42,7 @@ from ofbe_data.convergence import (
     running_mean,
     step_average,
 )
-from ofbe_data.errors import ConfigError, OfbeError
-from ofbe_data.label_cli import expand_sessions
-from ofbe_data.labels import LabelParams, label_params_from, label_session
-from ofbe_data.parallel import map_progress
-from ofbe_data.typedconfig import from_plain, read_section
-from ofbe_data.windows import load_segments
-from ofbe_model.figures import new_figure, save_png
+from ofbe_data.labelling.labels import LabelParams, label_session
 
 AXES = ("x", "y", "z")
 PAPER_BAND = (4000, 5000)
@@ -64,7 +60,7 @@ class ConvergenceParams:
     axis
         Axis whose statistics give the recommendation (the paper uses x).
     statistic
-        One of :data:`ofbe_data.convergence.STATISTICS`.
+        One of :data:`ofbe_data.labelling.convergence.STATISTICS`.
     round_to
         The recommendation is rounded up to a multiple of this many samples.
     bins
@@ -447,30 +443,6 @@ def write_report(analysis: Analysis, out_dir: Path, params: ConvergenceParams, l
     return doc
 
 
-def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
-        prog="ofbe-convergence",
-        description="Convergence analysis of the label's running mean over labelled sessions: per-axis "
-                    "statistics, histogram, example curve, Allan deviation per device, and the recommended "
-                    "fewest samples per label (convergence.json, convergence.md, figures).")
-    p.add_argument("paths", nargs="+", help="session folders or campaign folders (raw)")
-    p.add_argument("--out", default="reports/convergence", help="report folder (default: %(default)s)")
-    p.add_argument("--params", help="YAML file whose 'label:' section gives the labelling parameters and "
-                                    "'convergence:' section the recommendation rule (e.g. params.yaml)")
-    p.add_argument("--axis", choices=AXES, help="axis of the recommendation (default x)")
-    p.add_argument("--statistic", choices=STATISTICS, help="statistic of the recommendation (default mean)")
-    p.add_argument("--example", help="SESSION/RECORDING/DEVICE for the example curve "
-                                     "(default: the one closest to the mean)")
-    p.add_argument("--jobs", type=int, default=1, help="worker processes (default: %(default)s)")
-    p.add_argument("--quiet", action="store_true", help="no progress bar, no summary")
-    return p
-
-
-def _fail(message: str, code: int) -> int:
-    print(f"ofbe-convergence: error: {message}", file=sys.stderr)
-    return code
-
-
 def convergence_params_from(data: dict[str, Any] | None, source: str) -> ConvergenceParams:
     """:class:`ConvergenceParams` from a plain mapping, checked."""
     params: ConvergenceParams = from_plain(data or {}, ConvergenceParams, source, "convergence")
@@ -484,36 +456,3 @@ def convergence_params_from(data: dict[str, Any] | None, source: str) -> Converg
     return params
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    args = _parser().parse_args(argv)
-    try:
-        if args.jobs < 1:
-            return _fail(f"--jobs: expected an integer ≥ 1, found {args.jobs}", 2)
-        label_data = read_section(args.params, "label") if args.params else {}
-        label_data = {k: v for k, v in label_data.items() if k != "min_samples"}
-        label_params = label_params_from(label_data, args.params or "command line")
-        conv_data = dict(read_section(args.params, "convergence")) if args.params else {}
-        if args.axis:
-            conv_data["axis"] = args.axis
-        if args.statistic:
-            conv_data["statistic"] = args.statistic
-        params = convergence_params_from(conv_data, args.params or "command line")
-        folders = expand_sessions(args.paths)
-    except OfbeError as exc:
-        return _fail(str(exc), 2)
-    jobs = min(args.jobs, os.cpu_count() or 1, len(folders))
-    try:
-        analysis = analyse(folders, label_params, jobs, progress=not args.quiet)
-        doc = write_report(analysis, Path(args.out), params, label_params, args.example)
-    except OfbeError as exc:
-        return _fail(str(exc), 1)
-    if not args.quiet:
-        x = doc["axes"][params.axis]
-        print(f"ofbe-convergence: {doc['n_recordings']} recordings; axis {params.axis} converges after "
-              f"{x['mean']:.0f} ± {x['std']:.0f} samples; recommended label length "
-              f"{doc['recommended_label_start']} -> {args.out}", file=sys.stderr)
-    return 0
-
-
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())

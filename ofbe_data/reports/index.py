@@ -1,7 +1,7 @@
 """``reports/index.md``: one page that links every table and figure of a pipeline run.
 
 The page is made from what the DVC pipeline left on disk, nothing is recomputed except the
-label fidelity (labels against the simulator's truth, :func:`ofbe_data.fidelity.label_fidelity`):
+label fidelity (labels against the simulator's truth, :func:`ofbe_data.dataset.fidelity.label_fidelity`):
 
 1. what was run (profile, campaigns, toolkit version);
 2. the paper's Table 3 per benchmark protocol, copied from ``reports/benchmark/<protocol>/benchmark.md``,
@@ -20,22 +20,20 @@ inputs give the same bytes.
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import os
 import re
-import sys
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 from urllib.parse import quote
 
 from ofbe_data import __version__
-from ofbe_data.atomic import write_bytes_atomic
-from ofbe_data.errors import OfbeError
-from ofbe_data.fidelity import AXES, TruthError, label_fidelity, truth_dir_of
-from ofbe_data.labelstore import read_labels
+from ofbe_data.core.atomic import write_bytes_atomic
+from ofbe_data.core.errors import OfbeError
+from ofbe_data.dataset.fidelity import AXES, TruthError, label_fidelity, truth_dir_of
+from ofbe_data.labelling.store import read_labels
 
 PROG = "ofbe-index"
 DEFAULT_CAMPAIGNS = ("gravity-aligned", "rotated")
@@ -500,60 +498,3 @@ def read_timings(path: str | Path) -> dict[str, float] | None:
     return out
 
 
-# ----------------------------------------------------------------------------- command line
-
-
-def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
-        prog=PROG,
-        description="Write reports/index.md: one page linking the benchmark (the paper's Table 3), the "
-                    "convergence and small-angle reports, label fidelity, datasets, training and stage "
-                    "times.")
-    p.add_argument("--root", default=".", help="project root (default: %(default)s)")
-    p.add_argument("--out", help="output file (default: ROOT/reports/index.md); links are relative to "
-                                 "ROOT/reports")
-    p.add_argument("--campaigns", nargs="*", default=list(DEFAULT_CAMPAIGNS),
-                   help="campaigns (default: %(default)s)")
-    p.add_argument("--protocols", nargs="*", default=list(DEFAULT_PROTOCOLS),
-                   help="benchmark protocols (default: %(default)s)")
-    p.add_argument("--profile", help="name of the run profile, shown on the page")
-    p.add_argument("--timings", help=f"JSON file of stage times, {TIMINGS_FORMAT}; a missing file is noted "
-                                     "on the page")
-    p.add_argument("--quiet", action="store_true", help="no summary line")
-    return p
-
-
-def _fail(message: str, code: int) -> int:
-    print(f"{PROG}: error: {message}", file=sys.stderr)
-    return code
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Command line of ``reports/index.md``.
-
-    Returns
-    -------
-    int
-        0 on success; 1 when the reports folder is missing or an input cannot be read;
-        2 on a bad timings file (argparse also exits 2 on bad options).
-    """
-    args = _parser().parse_args(argv)
-    root = Path(args.root)
-    out = Path(args.out) if args.out else root / "reports" / "index.md"
-    try:
-        timings = read_timings(args.timings) if args.timings else None
-    except OfbeError as exc:
-        return _fail(str(exc), 2)
-    try:
-        write_index(root, out, list(args.campaigns), list(args.protocols), timings, profile=args.profile)
-    except (OfbeError, OSError) as exc:
-        return _fail(str(exc), 1)
-    if not args.quiet:
-        total = "" if timings is None else f"; stages took {math.fsum(timings.values()):.1f} s in total"
-        print(f"{PROG}: {len(args.protocols)} protocols, {len(args.campaigns)} campaigns{total} -> {out}",
-              file=sys.stderr)
-    return 0
-
-
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())

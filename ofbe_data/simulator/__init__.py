@@ -2,23 +2,24 @@
 
 The simulator stands in for the paper's unpublished dataset. Its error model and
 defaults are documented in docs/sensor-model.md; :func:`simulate_campaign` is what
-``ofbe-simulate`` runs.
+``ofbe-simulate`` runs. It may import :mod:`ofbe_data.core` and :mod:`ofbe_data.io` (it writes
+the same formats the readers read), never the labelling: the labeller must never depend on how
+the data were made.
 """
 
 from __future__ import annotations
 
 import os
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import yaml
-from tqdm import tqdm
 
-from ofbe_data.atomic import atomic_directory, write_bytes_atomic
-from ofbe_data.errors import ConfigError, OutputExistsError
-from ofbe_data.manifest import ID_PATTERN
+from ofbe_data.core.atomic import atomic_directory, write_bytes_atomic
+from ofbe_data.core.errors import ConfigError, OutputExistsError
+from ofbe_data.core.parallel import map_progress
+from ofbe_data.io.manifest import ID_PATTERN
 from ofbe_data.simulator.campaign import (
     CampaignDraw,
     SessionData,
@@ -26,9 +27,9 @@ from ofbe_data.simulator.campaign import (
     session_name,
     simulate_session,
     truth_config,
-    write_session,
 )
 from ofbe_data.simulator.config import SimConfig, builtin_profiles, load_config
+from ofbe_data.simulator.writing import write_session
 
 __all__ = ["CampaignResult", "builtin_profiles", "generate_sessions", "load_config",
            "simulate_campaign"]
@@ -142,24 +143,13 @@ def simulate_campaign(config: str | Path | SimConfig, out: str | Path, *, seed: 
     seed = cfg.seed if seed is None else seed
     camp_seq, sess_seqs, garble_seqs = _seeds(seed, cfg)
     draw = draw_campaign(cfg, camp_seq)
-    files = size = 0
     with atomic_directory(out, replace=force) as tmp:
         (tmp / "_truth").mkdir()
         tasks = [(cfg, draw, i, campaign, sess_seqs[i], garble_seqs[i], tmp)
                  for i in range(cfg.sessions)]
-        bar = tqdm(total=len(tasks), desc=f"simulate {campaign}", unit="session",
-                   disable=not progress)
-        if jobs > 1:
-            with ProcessPoolExecutor(max_workers=min(jobs, os.cpu_count() or 1)) as pool:
-                for f, s in pool.map(_write_one, tasks):
-                    files, size = files + f, size + s
-                    bar.update()
-        else:
-            for task in tasks:
-                f, s = _write_one(task)
-                files, size = files + f, size + s
-                bar.update()
-        bar.close()
+        written = map_progress(_write_one, tasks, jobs=min(jobs, os.cpu_count() or 1),
+                               desc=f"simulate {campaign}", unit="session", progress=progress)
+        files, size = sum(f for f, _ in written), sum(s for _, s in written)
         text = yaml.safe_dump(truth_config(cfg, seed, campaign), sort_keys=False)
         write_bytes_atomic(tmp / "_truth" / "simulation.yaml", text.encode())
     return CampaignResult(out, campaign, seed, cfg.sessions, files, size)

@@ -2,7 +2,7 @@
 
 A configuration is a YAML mapping. It may name a base ``profile`` (built-in or a file);
 its own keys are then merged over the base, key by key. Unknown keys and values of the
-wrong type are errors (:class:`~ofbe_data.errors.ConfigError`) naming the key.
+wrong type are errors (:class:`~ofbe_data.core.errors.ConfigError`) naming the key.
 docs/sensor-model.md gives the source of every default.
 """
 
@@ -14,9 +14,9 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from ofbe_data.errors import ConfigError
-from ofbe_data.typedconfig import deep_merge, from_plain
-from ofbe_data.yamlio import YamlDocument, YamlProblem, read_yaml
+from ofbe_data.core.errors import ConfigError
+from ofbe_data.io.typedconfig import deep_merge, from_plain
+from ofbe_data.io.yamlio import YamlDocument, YamlProblem, read_yaml
 
 Range = tuple[float, float]
 Vec3 = tuple[float, float, float]
@@ -170,7 +170,7 @@ class SimConfig:
 
 # ----------------------------------------------------------------------------- loading
 
-_PROFILE_PACKAGE = "ofbe_data.profiles"
+_PROFILE_PACKAGE = "ofbe_data.simulator.profiles"
 
 
 def builtin_profiles() -> list[str]:

@@ -10,7 +10,7 @@ import numpy as np
 from scipy.signal import lfilter
 from scipy.spatial.transform import Rotation
 
-from ofbe_data.linalg3 import mul3, norm3
+from ofbe_data.core.geometry import mul3, norm3
 
 MG = 9.80665e-3
 """One milli-g in m/s² (unit conversion with standard gravity g0)."""

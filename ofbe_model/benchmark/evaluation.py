@@ -21,8 +21,8 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from ofbe_data.datastore import fold_column
-from ofbe_model.base import EstimatorError
+from ofbe_data.dataset.store import fold_column
+from ofbe_model.estimators.base import EstimatorError
 
 POOLED_KINDS = ("gravity-aligned",)
 """Kinds evaluated pooled over devices (the paper's gravity-aligned set); other kinds are

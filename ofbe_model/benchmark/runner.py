@@ -1,10 +1,10 @@
 """``ofbe-benchmark``: every estimator on every fold of a protocol, and the report.
 
 For each benchmark dataset (the gravity-aligned set pooled, each rotated device on its own;
-:mod:`ofbe_model.evaluation`) and each fold of the protocol, every estimator is fitted on
+:mod:`ofbe_model.benchmark.evaluation`) and each fold of the protocol, every estimator is fitted on
 the fold's training windows and predicts the fold's test signals (window 0 of each test
 recording). The predictions table (one row per method and test signal) feeds
-:mod:`ofbe_model.benchmark_report`: ``benchmark.json``, the paper's Table 3 as
+:mod:`ofbe_model.benchmark.report`: ``benchmark.json``, the paper's Table 3 as
 ``benchmark.md``, per-signal errors, paired t-tests, the oracle ratio and the figures.
 
 OFBENet is either loaded per fold from ``ofbe-train``'s models (``--models``: every training
@@ -14,11 +14,9 @@ trained here (one seed). The oracle reads the simulator's truth files (``--truth
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import time
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -27,11 +25,11 @@ import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
-from ofbe_data.datastore import load_dataset
-from ofbe_data.errors import ConfigError, OfbeError
-from ofbe_data.typedconfig import from_plain, read_section
-from ofbe_model.base import Estimator, EstimatorError, make_estimator
-from ofbe_model.evaluation import Split, protocol_splits
+from ofbe_data.core.errors import ConfigError
+from ofbe_data.dataset.reader import load_dataset
+from ofbe_data.io.typedconfig import from_plain
+from ofbe_model.benchmark.evaluation import Split, protocol_splits
+from ofbe_model.estimators.base import Estimator, EstimatorError, make_estimator
 
 #: Meta columns an estimator never sees at prediction time (they are the labels).
 LABEL_COLUMNS = ("bias_x", "bias_y", "bias_z", "offset_x", "offset_y", "offset_z", "gravity_x", "gravity_y",
@@ -121,7 +119,7 @@ def _estimators(method: str, split: Split, protocol: str, params: BenchmarkParam
             raise EstimatorError("oracle: expected --truth (the simulator's truth folder), found none")
         kwargs["truth_dir"] = str(truth_dir)
     if name == "ofbenet" and models_dir is not None:
-        from ofbe_model.ofbenet import OFBENet
+        from ofbe_model.ofbenet.network import OFBENet
 
         return [(seed, OFBENet.load(model_path(models_dir, split.dataset, protocol, split.fold, seed)), True)
                 for seed in trained_seeds(models_dir, split.dataset, protocol, split.fold)]
@@ -152,7 +150,7 @@ def run_protocol(dataset: str | Path, protocol: str, params: BenchmarkParams | N
     -------
     predictions
         One row per (method, test signal): the columns of
-        :func:`ofbe_model.benchmark_report.summarise`'s input.
+        :func:`ofbe_model.benchmark.report.summarise`'s input.
     seconds
         Fit + predict time per method, s (summed over folds).
     """
@@ -194,69 +192,3 @@ def run_protocol(dataset: str | Path, protocol: str, params: BenchmarkParams | N
     return pd.concat(rows, ignore_index=True), seconds
 
 
-def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
-        prog="ofbe-benchmark",
-        description="Run every estimator on every fold of a protocol and write benchmark.json, benchmark.md "
-                    "(the paper's Table 3), per-signal errors, t-tests and figures.")
-    p.add_argument("datasets", nargs="+", help="dataset folders (processed/datasets/<campaign>)")
-    p.add_argument("--protocol", required=True, help="paper-gravity, paper-rotated or grouped")
-    p.add_argument("--out", help="report folder (default: reports/benchmark/<protocol>)")
-    p.add_argument("--params", help="YAML file whose 'benchmark:' section sets methods, baselines and "
-                                    "estimator parameters")
-    p.add_argument("--methods", nargs="+", help="override benchmark.methods")
-    p.add_argument("--models", help="ofbe-train's output folder (OFBENet is trained here when not given)")
-    p.add_argument("--truth", action="append", default=[],
-                   help="the simulator's truth folder of a dataset's campaign, for the oracle (repeat per "
-                        "dataset, in the same order)")
-    p.add_argument("--quiet", action="store_true")
-    return p
-
-
-def _fail(message: str, code: int) -> int:
-    print(f"ofbe-benchmark: error: {message}", file=sys.stderr)
-    return code
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    from ofbe_model.benchmark_report import summarise, write_report
-
-    args = _parser().parse_args(argv)
-    try:
-        data = dict(read_section(args.params, "benchmark")) if args.params else {}
-        if args.methods:
-            data["methods"] = list(args.methods)
-        params = benchmark_params_from(data, args.params or "command line")
-        if args.truth and len(args.truth) != len(args.datasets):
-            raise ConfigError("command line", "--truth", f"one per dataset ({len(args.datasets)})",
-                              str(len(args.truth)))
-    except OfbeError as exc:
-        return _fail(str(exc), 2)
-    out = Path(args.out) if args.out else Path("reports/benchmark") / args.protocol
-    frames = []
-    timing: dict[str, float] = {}
-    try:
-        for i, ds in enumerate(args.datasets):
-            truth = args.truth[i] if args.truth else None
-            pred, seconds = run_protocol(ds, args.protocol, params, models_dir=args.models, truth_dir=truth,
-                                         progress=not args.quiet)
-            frames.append(pred)
-            for k, v in seconds.items():
-                timing[k] = timing.get(k, 0.0) + v
-        pred = pd.concat(frames, ignore_index=True)
-        summary = summarise(pred, baselines=params.baselines)
-        write_report(out, pred, summary, title=f"Benchmark, protocol {args.protocol}")
-    except OfbeError as exc:
-        return _fail(str(exc), 1)
-    if not args.quiet:
-        for name, info in summary["datasets"].items():
-            best = min(info["methods"].items(), key=lambda kv: kv[1]["rmse_mean"])
-            print(f"ofbe-benchmark: {name}: best {best[0]} RMSE {best[1]['rmse_mean']:.4g} m/s²",
-                  file=sys.stderr)
-        print("ofbe-benchmark: seconds per method: "
-              + ", ".join(f"{k} {v:.1f}" for k, v in timing.items()) + f" -> {out}", file=sys.stderr)
-    return 0
-
-
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())

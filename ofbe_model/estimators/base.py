@@ -18,7 +18,7 @@ from typing import Any, ClassVar, TypeVar
 import numpy as np
 import pandas as pd
 
-from ofbe_data.errors import OfbeError
+from ofbe_data.core.errors import OfbeError
 
 #: Columns every ``meta`` frame must have.
 META_REQUIRED = ("device", "g_local")
@@ -154,7 +154,8 @@ def _load_builtin() -> None:
     TensorFlow, which is heavy)."""
     import importlib
 
-    for module in ("ofbe_model.estimators", "ofbe_model.ofbenet"):
+    for module in ("ofbe_model.estimators.physics", "ofbe_model.estimators.priors",
+                   "ofbe_model.estimators.oracle", "ofbe_model.ofbenet.network"):
         try:
             importlib.import_module(module)
         except ModuleNotFoundError as exc:  # a module not written yet

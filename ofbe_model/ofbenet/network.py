@@ -33,321 +33,40 @@ each other.
 
 from __future__ import annotations
 
-import dataclasses
 import json
-import math
 import os
 import tempfile
 import time
 import warnings
 import zipfile
-from collections.abc import Iterator, Mapping, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any, ClassVar
 
-import keras
 import numpy as np
 import pandas as pd
-import tensorflow as tf
 
-from ofbe_data.errors import ConfigError
-from ofbe_model.base import Estimator, EstimatorError, check_inputs, register
+from ofbe_data.core.cli import import_tensorflow
+from ofbe_data.core.errors import ConfigError
+from ofbe_model.estimators.base import Estimator, EstimatorError, check_inputs, register
+from ofbe_model.ofbenet.layers import HEAD_LAYER, Destandardise, Standardise, build_ofbenet
+from ofbe_model.ofbenet.params import (
+    _KERAS_FILES,
+    _PARAM_NAMES,
+    _REFUSED_CLASSES,
+    _STD_FLOOR,
+    EVAL_BATCH,
+    SIDECAR_FORMAT,
+    SIDECAR_NAME,
+    OFBENetParams,
+)
+
+tf = import_tensorflow()  # before keras: TensorFlow's start-up lines stay off the terminal
+import keras  # noqa: E402
 
 #: Filters of the three convolution blocks (paper).
-FILTERS: tuple[int, int, int] = (8, 32, 64)
-#: Kernel size of every Conv1D (paper).
-KERNEL_SIZE = 5
-#: Negative slope of the LeakyReLU activations (paper's α).
-LEAKY_SLOPE = 0.1
-#: Windows per batch in prediction and validation (does not affect training).
-EVAL_BATCH = 64
-#: Member of the ``.keras`` archive holding the estimator's parameters and training record.
-SIDECAR_NAME = "ofbe_ofbenet.json"
-#: ``format`` of that member.
-SIDECAR_FORMAT = "ofbe-ofbenet/1"
-
-INPUT_SCALINGS = ("per-axis-standardise", "global-standardise", "none")
-TARGET_SCALINGS = ("standardise", "none")
-DENSE_ACTIVATIONS = ("relu", "linear")
-
-_STD_FLOOR = 1e-12  # a (near-)constant channel is left unscaled rather than divided by ~0
-_KERAS_FILES = ("config.json", "metadata.json", "model.weights.h5")
-_REFUSED_CLASSES = frozenset({"Lambda", "__lambda__", "TFSMLayer", "TorchModuleWrapper", "JaxLayer",
-                              "FlaxLayer"})
 
 
-# ---------------------------------------------------------------------------------------------
-# Parameters
-
-
-@dataclass(frozen=True)
-class OFBENetParams:
-    """The choices the paper leaves open, with their defaults.
-
-    Attributes
-    ----------
-    pool_size
-        AveragePooling1D pool size (and stride) after each block. 4 keeps the time axis of a
-        3000-sample window at 3000 → 749 → 186 → 45 samples before the global average.
-    dense_units
-        Width of the hidden Dense layer.
-    dense_activation
-        Activation of the hidden Dense layer: ``"relu"`` (default) or ``"linear"``.
-    dropout
-        Dropout rate after the hidden Dense layer, in [0, 1).
-    input_scaling
-        ``"per-axis-standardise"`` (default): subtract each axis' mean and divide by its
-        standard deviation, both over all samples of the training windows (the validation
-        windows excluded), so the gravity axis (~9.8 m/s²) and the level axes (~0) enter
-        the first convolution on the same scale. ``"global-standardise"``: one mean and one
-        standard deviation over all axes. ``"none"``: raw m/s². A (near-)constant axis is
-        centred but not divided.
-    target_scaling
-        ``"standardise"`` (default): the network is trained on per-axis standardised labels
-        (mean and standard deviation of the training labels), so the loss is dimensionless
-        and the three axes weigh equally; the model's last layer maps back to m/s².
-        ``"none"``: trained on labels in m/s², loss in (m/s²)².
-    max_epochs
-        Upper limit of training epochs; early stopping usually ends training well before
-        (after 7–21 epochs on the simulated campaigns). The default, 100, bounds one fold of
-        ~990 windows of 3000 × 3 at 1.2–1.7 min on two CPU cores, measured running all 100
-        epochs (~0.8–0.9 s per epoch); an early-stopped fold takes ~15 s
-        (benchmarks/ofbenet_speed.py).
-    validation_split
-        Fraction of the training bias instances (``device`` × ``power_cycle`` groups, dealt
-        per device) held out for validation, early stopping and the learning-rate schedule.
-        Splitting by group keeps windows that share a bias out of both sides. 0 trains on
-        everything and monitors the training loss instead.
-    learning_rate
-        Adam's initial learning rate (paper: 0.01).
-    batch_size
-        Training batch size (paper: 8).
-    lr_factor, lr_patience
-        ReduceLROnPlateau factor and patience in epochs (paper: 0.2, 15). With the paper's
-        early-stopping patience of 5 the learning rate is never reduced; the callback is kept
-        to follow the paper.
-    es_patience
-        EarlyStopping patience in epochs (paper: 5); the best epoch's weights are restored.
-    seed
-        Seed of the validation split, weight initialisation, shuffling and dropout.
-    jit_compile
-        Compile the training step with XLA. Off by default: on a 2-core CPU an XLA epoch is
-        15–30 % shorter but each fit first spends 2–4 s compiling, so an early-stopped fold
-        takes about as long either way (benchmarks/ofbenet_speed.py); and without XLA the
-        determinism rests on TensorFlow's op determinism rather than on XLA's code
-        generation. With XLA, op determinism is not enabled (Keras would turn XLA off): see
-        the module docstring. Both settings are deterministic on CPU but give different
-        weights.
-    """
-
-    pool_size: int = 4
-    dense_units: int = 64
-    dense_activation: str = "relu"
-    dropout: float = 0.2
-    input_scaling: str = "per-axis-standardise"
-    target_scaling: str = "standardise"
-    max_epochs: int = 100
-    validation_split: float = 0.2
-    learning_rate: float = 0.01
-    batch_size: int = 8
-    lr_factor: float = 0.2
-    lr_patience: int = 15
-    es_patience: int = 5
-    seed: int = 0
-    jit_compile: bool = False
-
-    def __post_init__(self) -> None:
-        src = "OFBENetParams"
-        ints = {"pool_size": 1, "dense_units": 1, "max_epochs": 1, "batch_size": 1, "lr_patience": 0,
-                "es_patience": 0, "seed": 0}
-        for key, low in ints.items():
-            value = getattr(self, key)
-            if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < low:
-                raise ConfigError(src, key, f"an integer >= {low}", repr(value))
-            object.__setattr__(self, key, int(value))
-        # (name, lower, lower inclusive, upper, upper inclusive)
-        ranges = {"dropout": (0.0, True, 1.0, False), "validation_split": (0.0, True, 1.0, False),
-                  "learning_rate": (0.0, False, math.inf, False), "lr_factor": (0.0, False, 1.0, False)}
-        for key, (lo, lo_in, hi, hi_in) in ranges.items():
-            value = getattr(self, key)
-            ok = (not isinstance(value, bool) and isinstance(value, int | float | np.integer | np.floating)
-                  and math.isfinite(value) and (value >= lo if lo_in else value > lo)
-                  and (value <= hi if hi_in else value < hi))
-            if not ok:
-                interval = f"{'[' if lo_in else '('}{lo:g}, {hi:g}{']' if hi_in else ')'}"
-                raise ConfigError(src, key, f"a number in {interval}", repr(value))
-            object.__setattr__(self, key, float(value))
-        for key, allowed in (("input_scaling", INPUT_SCALINGS), ("target_scaling", TARGET_SCALINGS),
-                             ("dense_activation", DENSE_ACTIVATIONS)):
-            if getattr(self, key) not in allowed:
-                raise ConfigError(src, key, f"one of {', '.join(allowed)}", repr(getattr(self, key)))
-        if not isinstance(self.jit_compile, bool | np.bool_):
-            raise ConfigError(src, "jit_compile", "true or false", repr(self.jit_compile))
-        object.__setattr__(self, "jit_compile", bool(self.jit_compile))
-
-    def to_dict(self) -> dict[str, Any]:
-        """Plain JSON-ready copy."""
-        return dataclasses.asdict(self)
-
-
-_PARAM_NAMES = tuple(f.name for f in dataclasses.fields(OFBENetParams))
-
-
-# ---------------------------------------------------------------------------------------------
-# Scaling layers
-
-
-def _constants(values: Sequence[float], name: str, positive: bool) -> tuple[float, ...]:
-    try:
-        out = tuple(float(v) for v in np.asarray(values, dtype=np.float64).reshape(-1))
-    except (TypeError, ValueError) as exc:
-        raise EstimatorError(f"{name}: expected a sequence of numbers, found {values!r}") from exc
-    if not out or not all(math.isfinite(v) and (v > 0 if positive else True) for v in out):
-        what = "positive finite numbers" if positive else "finite numbers"
-        raise EstimatorError(f"{name}: expected a non-empty sequence of {what}, found {list(out)}")
-    return out
-
-
-@keras.saving.register_keras_serializable(package="ofbe")
-class Standardise(keras.layers.Layer):
-    """``z = (x − mean) / std`` per channel, with constants stored in the layer config.
-
-    Parameters
-    ----------
-    mean, std
-        One value per channel (last axis), in the input's units (m/s² for windows); ``std``
-        positive.
-    **kwargs
-        Passed to :class:`keras.layers.Layer` (``name``...).
-    """
-
-    def __init__(self, mean: Sequence[float], std: Sequence[float], **kwargs: Any) -> None:
-        super().__init__(**kwargs)
-        self.mean = _constants(mean, "Standardise.mean", positive=False)
-        self.std = _constants(std, "Standardise.std", positive=True)
-        if len(self.mean) != len(self.std):
-            raise EstimatorError(f"Standardise: expected mean and std of equal length, found "
-                                 f"{len(self.mean)} and {len(self.std)}")
-
-    def call(self, inputs: Any) -> Any:
-        mean = keras.ops.convert_to_tensor(np.asarray(self.mean, dtype=np.float32), dtype=inputs.dtype)
-        std = keras.ops.convert_to_tensor(np.asarray(self.std, dtype=np.float32), dtype=inputs.dtype)
-        return (inputs - mean) / std
-
-    def compute_output_shape(self, input_shape: tuple[int | None, ...]) -> tuple[int | None, ...]:
-        return input_shape
-
-    def get_config(self) -> dict[str, Any]:
-        return {**super().get_config(), "mean": list(self.mean), "std": list(self.std)}
-
-
-@keras.saving.register_keras_serializable(package="ofbe")
-class Destandardise(keras.layers.Layer):
-    """``y = z · std + mean`` per channel: the inverse of :class:`Standardise`.
-
-    Parameters
-    ----------
-    mean, std
-        One value per channel, in the output's units (m/s² for biases); ``std`` positive.
-    **kwargs
-        Passed to :class:`keras.layers.Layer`.
-    """
-
-    def __init__(self, mean: Sequence[float], std: Sequence[float], **kwargs: Any) -> None:
-        super().__init__(**kwargs)
-        self.mean = _constants(mean, "Destandardise.mean", positive=False)
-        self.std = _constants(std, "Destandardise.std", positive=True)
-        if len(self.mean) != len(self.std):
-            raise EstimatorError(f"Destandardise: expected mean and std of equal length, found "
-                                 f"{len(self.mean)} and {len(self.std)}")
-
-    def call(self, inputs: Any) -> Any:
-        mean = keras.ops.convert_to_tensor(np.asarray(self.mean, dtype=np.float32), dtype=inputs.dtype)
-        std = keras.ops.convert_to_tensor(np.asarray(self.std, dtype=np.float32), dtype=inputs.dtype)
-        return inputs * std + mean
-
-    def compute_output_shape(self, input_shape: tuple[int | None, ...]) -> tuple[int | None, ...]:
-        return input_shape
-
-    def get_config(self) -> dict[str, Any]:
-        return {**super().get_config(), "mean": list(self.mean), "std": list(self.std)}
-
-
-# ---------------------------------------------------------------------------------------------
-# The network
-
-#: Name of the layer whose output is the standardised bias (the training target's space).
-HEAD_LAYER = "bias_scaled"
-
-
-def feature_length(window_length: int, pool_size: int) -> int:
-    """Time steps left before the global average: each block is a 'valid' Conv1D (−4) and a
-    pooling (// pool_size).
-
-    Parameters
-    ----------
-    window_length
-        T, samples.
-    pool_size
-        Pooling size and stride.
-    """
-    n = window_length
-    for _ in FILTERS:
-        n = (n - (KERNEL_SIZE - 1)) // pool_size
-    return n
-
-
-def build_ofbenet(window_length: int, params: OFBENetParams, x_mean: Sequence[float],
-                  x_std: Sequence[float], y_mean: Sequence[float], y_std: Sequence[float]) -> keras.Model:
-    """The OFBENet Keras model, uncompiled, with both scalings inside.
-
-    Parameters
-    ----------
-    window_length
-        T, samples per window.
-    params
-        Architecture choices (``pool_size``, ``dense_units``, ``dense_activation``, ``dropout``).
-    x_mean, x_std
-        (3,) input scaling constants, m/s² (``std`` > 0): the first layer computes
-        ``(x − x_mean) / x_std``.
-    y_mean, y_std
-        (3,) target scaling constants, m/s²: the last layer computes ``z · y_std + y_mean``.
-
-    Returns
-    -------
-    keras.Model
-        Input ``window`` (None, T, 3) m/s² → output (None, 3) m/s². The layer named
-        :data:`HEAD_LAYER` gives the scaled output the network is trained on.
-
-    Raises
-    ------
-    EstimatorError
-        A window too short for three blocks, or invalid scaling constants.
-    """
-    if isinstance(window_length, bool) or not isinstance(window_length, int | np.integer):
-        raise EstimatorError(f"window_length: expected an integer, found {window_length!r}")
-    n_feat = feature_length(int(window_length), params.pool_size)
-    if n_feat < 1:
-        raise EstimatorError(f"window_length: expected a window long enough for three Conv1D(kernel "
-                             f"{KERNEL_SIZE}) + AveragePooling1D({params.pool_size}) blocks, found "
-                             f"{window_length} samples")
-    for name, values in (("x_mean", x_mean), ("x_std", x_std), ("y_mean", y_mean), ("y_std", y_std)):
-        if len(_constants(values, name, positive=name.endswith("std"))) != 3:
-            raise EstimatorError(f"{name}: expected 3 values (x, y, z), found {len(values)}")
-    inputs = keras.Input(shape=(int(window_length), 3), name="window")
-    x = Standardise(x_mean, x_std, name="input_scaling")(inputs)
-    for i, filters in enumerate(FILTERS, start=1):
-        x = keras.layers.Conv1D(filters, KERNEL_SIZE, name=f"conv{i}")(x)
-        x = keras.layers.BatchNormalization(name=f"bn{i}")(x)
-        x = keras.layers.LeakyReLU(negative_slope=LEAKY_SLOPE, name=f"leaky_relu{i}")(x)
-        x = keras.layers.AveragePooling1D(pool_size=params.pool_size, name=f"pool{i}")(x)
-    x = keras.layers.GlobalAveragePooling1D(name="global_pool")(x)
-    x = keras.layers.Dense(params.dense_units, activation=params.dense_activation, name="dense")(x)
-    x = keras.layers.Dropout(params.dropout, name="dropout")(x)
-    z = keras.layers.Dense(3, name=HEAD_LAYER)(x)
-    outputs = Destandardise(y_mean, y_std, name="target_scaling")(z)
-    return keras.Model(inputs, outputs, name="ofbenet")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -545,7 +264,8 @@ class OFBENet(Estimator):
     # -- training ---------------------------------------------------------------------------
 
     def fit(self, windows: np.ndarray, labels: np.ndarray, meta: pd.DataFrame, *,
-            verbose: int = 0) -> OFBENet:
+            verbose: int = 0, on_epoch: Callable[[int, dict[str, float]], None] | None = None,
+            ) -> OFBENet:
         """Train on windows and their labels.
 
         Parameters
@@ -559,6 +279,9 @@ class OFBENet(Estimator):
             ``power_cycle`` (validation holds out whole bias instances).
         verbose
             Keras progress: 0 silent, 2 one line per epoch (1, a progress bar, also works).
+        on_epoch
+            Called after every epoch with the 1-based epoch and its logs (``loss``,
+            ``val_loss``…): a caller's own progress display (``ofbe-train``'s bar).
 
         Returns
         -------
@@ -607,6 +330,9 @@ class OFBENet(Estimator):
             keras.callbacks.EarlyStopping(monitor=monitor, patience=params.es_patience,
                                           restore_best_weights=True, verbose=0),
         ]
+        if on_epoch is not None:
+            callbacks.append(keras.callbacks.LambdaCallback(
+                on_epoch_end=lambda epoch, logs: on_epoch(epoch + 1, dict(logs or {}))))
         validation = (x[val], target(y[val])) if val.any() else None
         hist = trainer.fit(x_tr, target(y_tr), batch_size=params.batch_size, epochs=params.max_epochs,
                            validation_data=validation, validation_batch_size=EVAL_BATCH, shuffle=True,
@@ -812,6 +538,10 @@ class OFBENet(Estimator):
         return est
 
 
+#: Modules the scaling layers are saved from: today's, and the one of models saved by ofbe 0.1.0.
+_LAYER_MODULES = frozenset({Standardise.__module__, "ofbe_model.ofbenet"})
+
+
 def _check_config(config: Any, path: Path) -> None:
     """Refuse a model configuration naming anything but Keras objects and this module's layers.
 
@@ -845,6 +575,6 @@ def _check_config(config: Any, path: Path) -> None:
         keras_builtin = isinstance(module, str) and (module == "keras" or module.startswith("keras."))
         if module == "builtins" and cls_name == "function":
             keras_builtin = True
-        if not (keras_builtin or (module == __name__ and registered in own)):
+        if not (keras_builtin or (module in _LAYER_MODULES and registered in own)):
             raise EstimatorError(f"{path}: config.json: expected Keras objects and ofbe scaling layers only, "
                                  f"found {cls_name!r} from module {module!r}")

@@ -6,13 +6,14 @@ Usage::
                [--max-epochs N] [--seeds N] [--params params.yaml] [--quiet]
 
 For every benchmark dataset (the pooled campaign, or one per device: see
-:mod:`ofbe_model.evaluation`) and every fold of :func:`~ofbe_model.evaluation.protocol_splits`,
-OFBENet is fitted on that fold's training windows (never its test signals) and written to
-``<out>/<dataset>/<protocol>/`` with ``/`` in the dataset name replaced by ``__``:
+:mod:`ofbe_model.benchmark.evaluation`) and every fold of
+:func:`~ofbe_model.benchmark.evaluation.protocol_splits`, OFBENet is fitted on that fold's
+training windows (never its test signals) and written to ``<out>/<dataset>/<protocol>/`` with ``/``
+in the dataset name replaced by ``__``:
 
 ``fold-<k>.seed-<s>.keras``
     The model of fold k trained with seed s: raw (N, T, 3) m/s² windows → (N, 3) m/s²
-    biases, scalings inside (:meth:`ofbe_model.ofbenet.OFBENet.load`).
+    biases, scalings inside (:meth:`ofbe_model.ofbenet.network.OFBENet.load`).
 ``fold-<k>.seed-<s>.history.csv``
     Per epoch: ``epoch`` (1-based), ``loss``, ``val_loss``, ``learning_rate``.
 ``fold-<k>.training.png``
@@ -29,7 +30,7 @@ with several seeds: ``train.seeds`` (or ``--seeds``) N trains seeds ``seed … s
 and the benchmark reports the mean ± sd over them.
 
 Parameters come from the ``train:`` section of ``--params`` (keys: the fields of
-:class:`~ofbe_model.ofbenet.OFBENetParams`, plus ``seeds``), then ``--max-epochs`` and
+:class:`~ofbe_model.ofbenet.network.OFBENetParams`, plus ``seeds``), then ``--max-epochs`` and
 ``--seeds``. Existing files of the folds trained are replaced; every file is written
 atomically.
 
@@ -40,13 +41,12 @@ is one line.
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import io
 import json
 import sys
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -54,14 +54,17 @@ import numpy as np
 import pandas as pd
 from matplotlib import pyplot as plt
 from matplotlib.ticker import MaxNLocator
+from tqdm import tqdm
 
-from ofbe_data.atomic import write_bytes_atomic
-from ofbe_data.datastore import fold_column, load_dataset
-from ofbe_data.errors import ConfigError, OfbeError
-from ofbe_data.typedconfig import from_plain, read_section
-from ofbe_model.evaluation import Split, protocol_splits
-from ofbe_model.figures import new_figure, save_png
-from ofbe_model.ofbenet import OFBENet, OFBENetParams
+from ofbe_data.core.atomic import write_bytes_atomic
+from ofbe_data.core.errors import ConfigError
+from ofbe_data.core.figures import new_figure, save_png
+from ofbe_data.dataset.reader import load_dataset
+from ofbe_data.dataset.store import fold_column
+from ofbe_data.io.typedconfig import from_plain, read_section
+from ofbe_model.benchmark.evaluation import Split, protocol_splits
+from ofbe_model.ofbenet.network import OFBENet
+from ofbe_model.ofbenet.params import OFBENetParams
 
 PROG = "ofbe-train"
 #: ``format`` of ``training.json``.
@@ -211,7 +214,8 @@ def _read_summary(path: Path, dataset: str, protocol: str) -> dict[tuple[int, in
 
 
 def train_fold(x: np.ndarray, y: np.ndarray, meta: pd.DataFrame, split: Split, params: OFBENetParams,
-               folder: Path, verbose: int) -> tuple[dict[str, Any], dict[str, list[float]]]:
+               folder: Path, on_epoch: Callable[[int, dict[str, float]], None] | None = None,
+               ) -> tuple[dict[str, Any], dict[str, list[float]]]:
     """Fit one fold with one seed (``params.seed``); write its model and history CSV.
 
     Parameters
@@ -224,8 +228,8 @@ def train_fold(x: np.ndarray, y: np.ndarray, meta: pd.DataFrame, split: Split, p
         OFBENet parameters, the training seed included.
     folder
         ``<out>/<dataset>/<protocol>``.
-    verbose
-        Keras verbosity (0 or 2).
+    on_epoch
+        Called after every epoch with the 1-based epoch and its logs (progress display).
 
     Returns
     -------
@@ -238,7 +242,7 @@ def train_fold(x: np.ndarray, y: np.ndarray, meta: pd.DataFrame, split: Split, p
     stem = name.removesuffix(".keras")
     t0 = time.perf_counter()
     est = OFBENet.from_params(params).fit(x[split.train], y[split.train],
-                                          meta.iloc[split.train].reset_index(drop=True), verbose=verbose)
+                                          meta.iloc[split.train].reset_index(drop=True), on_epoch=on_epoch)
     seconds = time.perf_counter() - t0
     est.save(folder / name)
     write_bytes_atomic(folder / f"{stem}.history.csv", history_csv(est.history_))
@@ -281,7 +285,8 @@ def train(dataset: str | Path, protocol: str, out: str | Path, params: OFBENetPa
     folds
         Fold indices to train (all when None).
     progress
-        Per-fold lines on stderr and Keras' one line per epoch.
+        A progress bar on stderr over the fits (folds × seeds), with the current fold, seed,
+        epoch and loss; the per-epoch history goes to the history CSVs and ``training.json``.
     seeds
         Training seeds per fold: ``params.seed`` … ``params.seed + seeds − 1``.
 
@@ -295,8 +300,8 @@ def train(dataset: str | Path, protocol: str, out: str | Path, params: OFBENetPa
     _Usage
         Unknown protocol or fold.
     OfbeError
-        A bad dataset (:class:`~ofbe_data.datastore.DatasetError`) or a failed fit
-        (:class:`~ofbe_model.base.EstimatorError`).
+        A bad dataset (:class:`~ofbe_data.dataset.store.DatasetError`) or a failed fit
+        (:class:`~ofbe_model.estimators.base.EstimatorError`).
     """
     ds = load_dataset(dataset)
     meta = ds.meta
@@ -319,7 +324,8 @@ def train(dataset: str | Path, protocol: str, out: str | Path, params: OFBENetPa
     by_dataset: dict[str, list[Split]] = {}
     for s in splits:
         by_dataset.setdefault(s.dataset, []).append(s)
-    done, total = 0, len(splits) * len(seed_list)
+    bar = tqdm(total=len(splits) * len(seed_list), desc=f"{PROG} {protocol}", unit="fit", file=sys.stderr,
+               disable=not progress, dynamic_ncols=True)
     for name, group in by_dataset.items():
         folder = out / dataset_dirname(name) / protocol
         folder.mkdir(parents=True, exist_ok=True)
@@ -328,15 +334,15 @@ def train(dataset: str | Path, protocol: str, out: str | Path, params: OFBENetPa
         for split in group:
             histories: dict[int, dict[str, list[float]]] = {}
             for seed in seed_list:
-                done += 1
-                if progress:
-                    print(f"{PROG}: [{done}/{total}] {name} {protocol} fold {split.fold} seed {seed}: "
-                          f"training on {split.train.size} windows "
-                          f"(test signals held out: {split.test.size})",
-                          file=sys.stderr, flush=True)
+                where = f"{name} fold {split.fold} seed {seed}"
+                bar.set_postfix_str(f"{where}, epoch 0/{params.max_epochs}")
+
+                def on_epoch(epoch: int, logs: dict[str, float], where: str = where) -> None:
+                    loss = logs.get("val_loss", logs.get("loss", float("nan")))
+                    bar.set_postfix_str(f"{where}, epoch {epoch}/{params.max_epochs}, loss {loss:.3g}")
+
                 fold_params = dataclasses.replace(params, seed=seed)
-                entry, histories[seed] = train_fold(ds.X, ds.y, meta, split, fold_params, folder,
-                                                    2 if progress else 0)
+                entry, histories[seed] = train_fold(ds.X, ds.y, meta, split, fold_params, folder, on_epoch)
                 entries[(split.fold, seed)] = entry
                 summary = {"format": SUMMARY_FORMAT, "dataset": name, "dataset_path": str(dataset),
                            "protocol": protocol, "kind": str(ds.info["kind"]), "devices": list(split.devices),
@@ -344,13 +350,7 @@ def train(dataset: str | Path, protocol: str, out: str | Path, params: OFBENetPa
                            "folds": [entries[k] for k in sorted(entries)]}
                 write_bytes_atomic(summary_path,
                                    (json.dumps(summary, indent=2, allow_nan=False) + "\n").encode())
-                if progress:
-                    best = entry["best_val_loss"]
-                    best = entry["best_loss"] if best is None else best
-                    print(f"{PROG}: {name} fold {split.fold} seed {seed}: {entry['epochs_run']} epochs "
-                          f"(kept {entry['best_epoch']}, loss {best:.4g}) in {entry['seconds']:.1f} s "
-                          f"-> {folder / entry['model']}",
-                          file=sys.stderr, flush=True)
+                bar.update()
             # the figure shows every seed of the fold on record, those trained earlier included
             on_record = {seed: e for (fold, seed), e in entries.items() if fold == split.fold}
             for seed, e in on_record.items():
@@ -360,63 +360,7 @@ def train(dataset: str | Path, protocol: str, out: str | Path, params: OFBENetPa
                          f"OFBENet, {split.dataset}, {protocol}, fold {split.fold}", loss_label(params),
                          {seed: e["best_epoch"] for seed, e in on_record.items()})
         written.append(summary_path)
+    bar.close()
     return written
 
-
-def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog=PROG,
-                                description="Train OFBENet on every fold of a windowed dataset under one "
-                                            "protocol; write models, histories, curves and a summary.")
-    p.add_argument("dataset", help="dataset folder (processed/datasets/<name>)")
-    p.add_argument("--protocol", required=True, help="protocol: a fold_<protocol> column of the dataset")
-    p.add_argument("--out", default="models", help="models folder (default: models)")
-    p.add_argument("--folds", type=int, nargs="+", metavar="K", help="train only these folds (default: all)")
-    p.add_argument("--max-epochs", type=int, help="override train.max_epochs")
-    p.add_argument("--seeds", type=int, metavar="N",
-                   help="train every fold with N seeds (train.seed … train.seed + N − 1; "
-                        "overrides train.seeds)")
-    p.add_argument("--params", help="YAML file whose 'train:' section sets the OFBENet parameters")
-    p.add_argument("--quiet", action="store_true", help="no progress (per-fold and per-epoch lines)")
-    return p
-
-
-def _fail(message: str, code: int) -> int:
-    print(f"{PROG}: error: {message}", file=sys.stderr)
-    return code
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of ``ofbe-train``.
-
-    Returns
-    -------
-    int
-        0 on success, 1 on bad data or a failed fit, 2 on a usage or parameter error.
-    """
-    args = _parser().parse_args(argv)
-    try:
-        params = read_params(args.params, args.max_epochs)
-        seeds = read_seed_count(args.params, args.seeds)
-        fold_column(args.protocol)
-    except OfbeError as exc:
-        return _fail(str(exc), 2)
-    dataset = Path(args.dataset)
-    if not dataset.is_dir():
-        return _fail(f"{dataset}: expected a dataset folder, found no such folder", 2)
-    t0 = time.perf_counter()
-    try:
-        written = train(dataset, args.protocol, args.out, params, args.folds, progress=not args.quiet,
-                        seeds=seeds)
-    except _Usage as exc:
-        return _fail(str(exc), 2)
-    except (OfbeError, OSError) as exc:
-        return _fail(str(exc), 1)
-    if not args.quiet:
-        print(f"{PROG}: trained {args.protocol} on {dataset} in {time.perf_counter() - t0:.0f} s; summaries: "
-              f"{', '.join(map(str, written))}", file=sys.stderr)
-    return 0
-
-
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
 

@@ -3,7 +3,7 @@ import math
 import numpy as np
 import pytest
 
-from ofbe_data.allan import (
+from ofbe_data.labelling.allan import (
     AllanResult,
     allan_deviation,
     combine,

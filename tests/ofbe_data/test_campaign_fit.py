@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ofbe_data.campaign_fit import CampaignFitParams, design_matrix, fit_device
+from ofbe_data.labelling.campaign_fit import CampaignFitParams, design_matrix, fit_device
 from ofbe_data.simulator.physics import random_unit_vectors
 
 G = 9.7946

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from ofbe_data.convergence import convergence_index, running_mean
+from ofbe_data.labelling.convergence import convergence_index, running_mean
 
 
 def test_running_mean():
@@ -40,7 +40,7 @@ def test_white_noise_scaling():
 
 
 def test_axis_statistics_leave_out_unconverged() -> None:
-    from ofbe_data.convergence import axis_statistics
+    from ofbe_data.labelling.convergence import axis_statistics
 
     s = axis_statistics(np.array([4000, 5000, -1, 4500]))
     assert (s.n, s.n_not_converged, s.mean, s.min, s.max) == (4, 1, 4500.0, 4000.0, 5000.0)
@@ -50,7 +50,7 @@ def test_axis_statistics_leave_out_unconverged() -> None:
 
 
 def test_recommendation_rounds_up_and_rejects_nonsense() -> None:
-    from ofbe_data.convergence import axis_statistics, recommend_min_samples
+    from ofbe_data.labelling.convergence import axis_statistics, recommend_min_samples
 
     s = axis_statistics(np.array([4401, 4463]))
     assert recommend_min_samples(s) == 4500

@@ -13,17 +13,17 @@ import pandas as pd
 import pyarrow.parquet as pq
 import pytest
 
-from ofbe_data import dataset_cli
-from ofbe_data.datasets import DatasetParams, build_dataset, dataset_params_from
-from ofbe_data.datastore import ChecksumError, export_dataset, load_dataset
-from ofbe_data.errors import ConfigError, OutputExistsError
-from ofbe_data.label_cli import expand_sessions, label_sessions
-from ofbe_data.labels import LabelParams
-from ofbe_data.labelstore import read_labels
-from ofbe_data.manifest import load_manifest
-from ofbe_data.rawio import read_device_file
+from ofbe_data.cli import dataset as dataset_cli
+from ofbe_data.core.errors import ConfigError, OutputExistsError
+from ofbe_data.dataset.build import DatasetParams, build_dataset, dataset_params_from
+from ofbe_data.dataset.store import ChecksumError, export_dataset, load_dataset
+from ofbe_data.dataset.windows import SegmentError, WindowParams, cut_windows, iter_windows, n_windows
+from ofbe_data.io.formats import read_device_file
+from ofbe_data.io.manifest import load_manifest
+from ofbe_data.labelling.batch import expand_sessions, label_sessions
+from ofbe_data.labelling.labels import LabelParams
+from ofbe_data.labelling.store import read_labels
 from ofbe_data.simulator import load_config, simulate_campaign
-from ofbe_data.windows import SegmentError, WindowParams, cut_windows, iter_windows, n_windows
 
 T = 1000
 PARAMS = DatasetParams(window_length=T, stride=T)

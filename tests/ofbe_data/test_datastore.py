@@ -24,9 +24,10 @@ import pyarrow.parquet as pq
 import pytest
 import yaml
 
-from ofbe_data import datastore
-from ofbe_data.atomic import atomic_directory
-from ofbe_data.datastore import (
+from ofbe_data.core.atomic import atomic_directory
+from ofbe_data.core.errors import ConfigError, OfbeError, OutputExistsError
+from ofbe_data.dataset import writer as dataset_writer
+from ofbe_data.dataset.store import (
     SCHEMA_VERSION,
     WINDOW_COLUMNS,
     ChecksumError,
@@ -43,7 +44,6 @@ from ofbe_data.datastore import (
     verify_dataset,
     write_package_files,
 )
-from ofbe_data.errors import ConfigError, OfbeError, OutputExistsError
 
 T = 50
 STRIDE = 25
@@ -307,7 +307,7 @@ def test_export_with_overrides(built: Path, tmp_path: Path) -> None:
 
 def test_metadata_merged_in_batches_gives_the_same_files(built: Path, tmp_path: Path,
                                                          monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(datastore, "_MERGE_BLOCKS", 4)  # 18 blocks: four merges and a remainder
+    monkeypatch.setattr(dataset_writer, "_MERGE_BLOCKS", 4)  # 18 blocks: four merges and a remainder
     other = build(tmp_path / "synthetic-test")
     for name in ALL_FILES:
         assert (other / name).read_bytes() == (built / name).read_bytes(), name

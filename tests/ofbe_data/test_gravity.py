@@ -1,6 +1,6 @@
 import pytest
 
-from ofbe_data.gravity import local_gravity, normal_gravity
+from ofbe_data.io.gravity import local_gravity, normal_gravity
 
 
 def test_somigliana_matches_wgs84_equator_and_pole():

@@ -21,14 +21,15 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ofbe_data.errors import ManifestError, OfbeError, RawFormatError
-from ofbe_data.gravity import G0
-from ofbe_data.label_cli import main
-from ofbe_data.labels import LabelParams, label_session
-from ofbe_data.labelstore import read_labels
-from ofbe_data.manifest import load_manifest
-from ofbe_data.rawio import read_mscip_csv, read_ofbe_logger, write_ofbe_logger
-from ofbe_data.recording import SkippedLine
+from ofbe_data.cli.label import main
+from ofbe_data.core.errors import ManifestError, OfbeError, RawFormatError
+from ofbe_data.io.formats.mscip_csv import read_mscip_csv
+from ofbe_data.io.formats.ofbe_logger import read_ofbe_logger, write_ofbe_logger
+from ofbe_data.io.gravity import G0
+from ofbe_data.io.manifest import load_manifest
+from ofbe_data.io.recording import SkippedLine
+from ofbe_data.labelling.labels import LabelParams, label_session
+from ofbe_data.labelling.store import read_labels
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "raw" / "examples"
 GA = "tiny-gravity-aligned/ga-pc001"

@@ -12,9 +12,9 @@ import pandas as pd
 import pyarrow.parquet as pq
 import pytest
 
-from ofbe_data.label_cli import expand_sessions, label_sessions
-from ofbe_data.labels import LabelParams, label_session
-from ofbe_data.labelstore import LABEL_SCHEMA, read_labels, read_provenance
+from ofbe_data.labelling.batch import expand_sessions, label_sessions
+from ofbe_data.labelling.labels import LabelParams, label_session
+from ofbe_data.labelling.store import LABEL_SCHEMA, read_labels, read_provenance
 from ofbe_data.simulator import load_config, simulate_campaign
 
 MG = 9.80665e-3

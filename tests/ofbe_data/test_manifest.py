@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ofbe_data.errors import ManifestError
-from ofbe_data.gravity import local_gravity
-from ofbe_data.manifest import load_manifest, write_manifest
+from ofbe_data.core.errors import ManifestError
+from ofbe_data.io.gravity import local_gravity
+from ofbe_data.io.manifest import load_manifest, write_manifest
 
 VALID = """\
 format: ofbe-session/1

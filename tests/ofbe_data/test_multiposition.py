@@ -9,10 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ofbe_data.gravity import G0
-from ofbe_data.manifest import load_manifest
-from ofbe_data.multiposition import PoseFit, apparent_biases, fit_poses, min_poses
-from ofbe_data.rawio import read_device_file
+from ofbe_data.io.formats import read_device_file
+from ofbe_data.io.gravity import G0
+from ofbe_data.io.manifest import load_manifest
+from ofbe_data.labelling.multiposition import PoseFit, apparent_biases, fit_poses, min_poses
 
 MG = G0 / 1000.0
 """1 mg in m/s²."""

@@ -8,12 +8,12 @@ import pathlib
 from pathlib import Path
 
 import ofbe_data
-from ofbe_data.labels import LabelParams, label_session
+from ofbe_data.labelling.labels import LabelParams, label_session
 
-SIMULATOR_ONLY = {"simulator"}
-#: The one module outside the simulator that reads truth files: label fidelity, for dataset
-#: cards and reports, never for labels.
-TRUTH_READERS = {"fidelity.py"}
+SIMULATOR_ONLY = {"simulator", "simulate.py"}
+#: Outside the simulator and its command, only label fidelity reads truth files (for dataset
+#: cards), and the reports show its results; never for labels.
+TRUTH_READERS = {"fidelity.py", "reports"}
 
 
 def test_labelling_does_not_open_truth_files(examples, monkeypatch):

@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from ofbe_data.orientation import (
+from ofbe_data.labelling.orientation import (
     VERTICAL,
     apparent_bias,
     nearest_axis,

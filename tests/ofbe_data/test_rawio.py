@@ -11,19 +11,14 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ofbe_data.errors import RawFormatError
-from ofbe_data.gravity import G0
-from ofbe_data.manifest import CsvMapping, DeviceSpec
-from ofbe_data.rawio import (
-    read_device_file,
-    read_generic_csv,
-    read_mscip_csv,
-    read_ofbe_logger,
-    write_generic_csv,
-    write_mscip_csv,
-    write_ofbe_logger,
-)
-from ofbe_data.recording import Gap, SkippedLine
+from ofbe_data.core.errors import RawFormatError
+from ofbe_data.io.formats import read_device_file
+from ofbe_data.io.formats.generic_csv import read_generic_csv, write_generic_csv
+from ofbe_data.io.formats.mscip_csv import read_mscip_csv, write_mscip_csv
+from ofbe_data.io.formats.ofbe_logger import read_ofbe_logger, write_ofbe_logger
+from ofbe_data.io.gravity import G0
+from ofbe_data.io.manifest import CsvMapping, DeviceSpec
+from ofbe_data.io.recording import Gap, SkippedLine
 
 HEADER = """\
 ets Jun  8 2016 00:22:57

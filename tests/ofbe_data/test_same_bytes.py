@@ -3,7 +3,7 @@
 OpenBLAS picks its kernel by processor (or ``OPENBLAS_CORETYPE``), and numpy its SIMD loops by
 processor (or ``NPY_DISABLE_CPU_FEATURES``). Kernels with and without fused multiply-add give
 other last bits; before the products that feed written values were spelled out
-(:mod:`ofbe_data.linalg3`) and label floats rounded (:mod:`ofbe_data.precision`), a machine
+(:mod:`ofbe_data.core.geometry`) and label floats rounded (:mod:`ofbe_data.core.precision`), a machine
 whose kernel differs wrote other truth files and labels. Each variant here runs in its own
 process, simulating two tiny campaigns (rotated: sync, Rodrigues labels, campaign fit;
 multi-position: the pose fit) and labelling them; every file written must be byte-identical.
@@ -25,8 +25,8 @@ CORETYPES = ("Haswell", "Zen", "Nehalem", "Sandybridge")
 
 _SCRIPT = """
 import sys
-from ofbe_data.simulator.cli import main as simulate
-from ofbe_data.label_cli import main as label
+from ofbe_data.cli.simulate import main as simulate
+from ofbe_data.cli.label import main as label
 out = sys.argv[1]
 for c in sys.argv[2:]:
     assert simulate([c, "--out", f"{out}/raw/{c}", "--quiet"]) == 0
@@ -76,7 +76,7 @@ def test_simulator_and_labeller_write_the_same_bytes(reference, env, tmp_path) -
 
 def test_the_products_are_blas_free_and_exact() -> None:
     """mul3 equals BLAS to rounding and does not fuse: (a·b + c·d) + e·f in that order."""
-    from ofbe_data.linalg3 import dot3, mul3, norm3
+    from ofbe_data.core.geometry import dot3, mul3, norm3
 
     rng = np.random.default_rng(5)
     a, m, v = rng.normal(size=(50, 3)), rng.normal(size=(3, 3)), rng.normal(size=3)

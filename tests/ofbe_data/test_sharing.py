@@ -12,8 +12,8 @@ import numpy as np
 import pandas as pd
 
 from ofbe_data import load_dataset
-from ofbe_data.atomic import atomic_directory
-from ofbe_data.datastore import DatasetInfo, WindowWriter, export_dataset
+from ofbe_data.core.atomic import atomic_directory
+from ofbe_data.dataset.store import DatasetInfo, WindowWriter, export_dataset
 
 
 def _tiny_dataset(path: Path) -> None:

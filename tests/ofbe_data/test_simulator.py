@@ -9,12 +9,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ofbe_data.convergence import convergence_index
-from ofbe_data.errors import ConfigError, OutputExistsError
-from ofbe_data.gravity import G0
-from ofbe_data.manifest import load_manifest
-from ofbe_data.orientation import roll_pitch
-from ofbe_data.rawio import read_device_file
+from ofbe_data.core.errors import ConfigError, OutputExistsError
+from ofbe_data.io.formats import read_device_file
+from ofbe_data.io.gravity import G0
+from ofbe_data.io.manifest import load_manifest
+from ofbe_data.labelling.convergence import convergence_index
+from ofbe_data.labelling.orientation import roll_pitch
 from ofbe_data.simulator import generate_sessions, load_config, simulate_campaign
 from ofbe_data.simulator.campaign import draw_campaign
 from ofbe_data.simulator.physics import MG, plate_direction

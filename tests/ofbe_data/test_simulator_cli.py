@@ -5,7 +5,7 @@ from __future__ import annotations
 import subprocess
 import sys
 
-from ofbe_data.simulator.cli import main as simulate_main
+from ofbe_data.cli.simulate import main as simulate_main
 
 
 def test_simulate_writes_a_campaign(tmp_path, capsys):
@@ -27,7 +27,7 @@ def test_bad_input_gives_one_line_reason_and_exit_2(tmp_path, capsys):
 
 
 def test_console_script_help():
-    done = subprocess.run([sys.executable, "-m", "ofbe_data.simulator.cli", "--help"], capture_output=True,
+    done = subprocess.run([sys.executable, "-m", "ofbe_data.cli.simulate", "--help"], capture_output=True,
                           text=True, check=False)
     assert done.returncode == 0
     assert "tiny-gravity-aligned" in done.stdout and "--seed" in done.stdout

@@ -3,8 +3,8 @@ import math
 import numpy as np
 import pytest
 
-from ofbe_data.orientation import roll_pitch
-from ofbe_data.smallangle import (
+from ofbe_data.labelling.orientation import roll_pitch
+from ofbe_data.labelling.smallangle import (
     analyse,
     gravity_direction,
     leak_g,

@@ -13,8 +13,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ofbe_data.errors import OfbeError
-from ofbe_data.splits import (
+from ofbe_data.core.errors import OfbeError
+from ofbe_data.dataset.splits import (
     PROTOCOLS,
     SplitError,
     SplitParams,
@@ -380,7 +380,7 @@ def test_devices_get_independent_shuffles():
 
 def test_independent_of_python_hash_seed():
     code = ("import sys; sys.path.insert(0, sys.argv[1]); sys.path.insert(0, sys.argv[2]);"
-            "from test_splits import rotated_campaign; from ofbe_data.splits import assign_folds;"
+            "from test_splits import rotated_campaign; from ofbe_data.dataset.splits import assign_folds;"
             "print(''.join(str(f) for f in assign_folds(rotated_campaign(), 'grouped')))")
     here = Path(__file__).resolve().parent
     out = subprocess.run([sys.executable, "-c", code, str(ROOT), str(here)], capture_output=True, text=True,

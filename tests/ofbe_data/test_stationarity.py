@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ofbe_data.stationarity import StaticParams, check_static, longest_run, moving_variance_norm
+from ofbe_data.labelling.stationarity import StaticParams, check_static, longest_run, moving_variance_norm
 
 FS = 150.0
 NOISE = np.array([3.5, 3.5, 5.2]) * 9.80665e-3

@@ -9,10 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ofbe_data.manifest import load_manifest
-from ofbe_data.rawio import read_device_file
-from ofbe_data.recording import ReadDiagnostics, Recording
-from ofbe_data.sync import SyncError, synchronise
+from ofbe_data.io.formats import read_device_file
+from ofbe_data.io.manifest import load_manifest
+from ofbe_data.io.recording import ReadDiagnostics, Recording
+from ofbe_data.labelling.sync import SyncError, synchronise
 
 START = datetime(2025, 3, 14, 10, 0, tzinfo=UTC)
 

@@ -9,15 +9,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ofbe_data.datasets import DatasetParams, build_dataset
-from ofbe_data.label_cli import expand_sessions, label_sessions
-from ofbe_data.labels import LabelParams
+from ofbe_data.dataset.build import DatasetParams, build_dataset
+from ofbe_data.labelling.batch import expand_sessions, label_sessions
+from ofbe_data.labelling.labels import LabelParams
 from ofbe_data.simulator import load_config, simulate_campaign
-from ofbe_model import benchmark, predict_cli
-from ofbe_model.base import EstimatorError
-from ofbe_model.benchmark import BenchmarkParams, run_protocol
-from ofbe_model.benchmark_report import summarise, write_report
-from ofbe_model.estimators import GravityPrior
+from ofbe_model import predict as predict_cli
+from ofbe_model.benchmark.report import summarise, write_report
+from ofbe_model.benchmark.runner import BenchmarkParams, run_protocol
+from ofbe_model.cli import benchmark as benchmark_cli
+from ofbe_model.cli.predict import main as predict_main
+from ofbe_model.estimators.base import EstimatorError
+from ofbe_model.estimators.priors import GravityPrior
 
 T = 1000
 FAST = ("level-mean", "ls-trf", "won2009", "prior-mean", "gravity-prior", "oracle")
@@ -87,14 +89,14 @@ def test_paper_rotated_tests_nine_signals_per_fold_and_device(rotated) -> None:
 
 def test_cli_errors(rotated, tmp_path, capsys) -> None:
     tmp, ds = rotated
-    assert benchmark.main([str(ds), "--protocol", "paper-gravity", "--out", str(tmp_path / "o"), "--quiet",
-                           "--methods", "level-mean"]) == 1
+    assert benchmark_cli.main([str(ds), "--protocol", "paper-gravity", "--out", str(tmp_path / "o"),
+                               "--quiet", "--methods", "level-mean"]) == 1
     assert "expected one of this dataset's protocols (grouped, paper-rotated), found 'paper-gravity'" in \
         capsys.readouterr().err
-    assert benchmark.main([str(ds), "--protocol", "grouped", "--out", str(tmp_path / "o"), "--quiet",
+    assert benchmark_cli.main([str(ds), "--protocol", "grouped", "--out", str(tmp_path / "o"), "--quiet",
                            "--methods", "no-such"]) == 1
     assert "estimator: expected one of" in capsys.readouterr().err
-    assert benchmark.main([str(ds), "--protocol", "grouped", "--out", str(tmp_path / "o"), "--quiet",
+    assert benchmark_cli.main([str(ds), "--protocol", "grouped", "--out", str(tmp_path / "o"), "--quiet",
                            "--methods", "oracle"]) == 1
     assert "oracle: expected --truth" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()
@@ -109,17 +111,17 @@ def test_predict_with_a_saved_gravity_prior(rotated, tmp_path, capsys) -> None:
     path = tmp_path / "gp.json"
     model.save(path)
     session = tmp / "raw" / "rot-pc001"
-    assert predict_cli.main([str(path), str(session), "--window-length", str(T)]) == 0
+    assert predict_main([str(path), str(session), "--window-length", str(T)]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["method"] == "gravity-prior" and len(out["results"]) == 6  # 3 recordings × 2 DUTs
     for r in out["results"]:
         assert len(r["bias_m_s2"]) == 3 and all(s > 0 for s in r["std_m_s2"])
     # the prediction for the first test window equals the estimator's own
-    assert predict_cli.main([str(path), str(session), "--window-length", str(T), "--output", "table"]) == 0
+    assert predict_main([str(path), str(session), "--window-length", str(T), "--output", "table"]) == 0
     assert "sparkfun-1" in capsys.readouterr().out
     bad = tmp_path / "model.json"
     bad.write_text("{not json")
-    assert predict_cli.main([str(bad), str(session)]) == 2
+    assert predict_main([str(bad), str(session)]) == 2
     assert "model.json" in capsys.readouterr().err
     with pytest.raises(EstimatorError, match="expected a saved OFBENet"):
         predict_cli.load_model(tmp_path / "model.pkl")
@@ -133,11 +135,11 @@ def test_predict_on_a_bare_file(rotated, tmp_path, capsys) -> None:
     path = tmp_path / "gp.json"
     GravityPrior().fit(data.X, data.y, data.meta).save(path)
     bare = tmp / "raw" / "rot-pc001" / "rec-01" / "sparkfun-1.csv"
-    assert predict_cli.main([str(path), str(bare), "--device", "sparkfun-1", "--g-local", "9.80",
+    assert predict_main([str(path), str(bare), "--device", "sparkfun-1", "--g-local", "9.80",
                              "--window-length", str(T)]) == 0
     (r,) = json.loads(capsys.readouterr().out)["results"]
     assert r["device"] == "sparkfun-1" and r["g_local"] == 9.80 and len(r["bias_m_s2"]) == 3
     # a window longer than the still run is reported, not crashed on
-    assert predict_cli.main([str(path), str(bare), "--window-length", "100000"]) == 1
+    assert predict_main([str(path), str(bare), "--window-length", "100000"]) == 1
     err = capsys.readouterr().err
     assert "still samples, at least 100000 needed" in err and "sparkfun-1.csv" in err

@@ -15,8 +15,8 @@ import pytest
 from matplotlib.container import BarContainer
 from scipy import stats
 
-from ofbe_model import benchmark_report as br
-from ofbe_model.benchmark_report import (
+from ofbe_model.benchmark import figures as benchmark_figures
+from ofbe_model.benchmark.report import (
     max_error_figure,
     ordered_methods,
     rmse_figure,
@@ -25,7 +25,7 @@ from ofbe_model.benchmark_report import (
     table3_markdown,
     write_report,
 )
-from ofbe_model.statistics import paired_t
+from ofbe_model.benchmark.statistics import paired_t
 
 DATASETS = (("gravity-aligned", "imu-1,imu-2,imu-3"), ("rotated/sparkfun-1", "sparkfun-1"))
 METHODS = {"ls-trf": 0.05, "won2009": 0.04, "gravity-prior": 0.012, "oracle": 0.01}
@@ -260,7 +260,7 @@ def test_figures_are_png(summary: dict[str, Any], tmp_path: Path, draw: str) -> 
 
 def _captured_axes(monkeypatch: pytest.MonkeyPatch) -> list[Any]:
     figs: list[Any] = []
-    monkeypatch.setattr(br, "save_png", lambda fig, path: figs.append(fig) or Path(path))
+    monkeypatch.setattr(benchmark_figures, "save_png", lambda fig, path: figs.append(fig) or Path(path))
     return figs
 
 

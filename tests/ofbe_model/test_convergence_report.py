@@ -10,13 +10,14 @@ import matplotlib.image as mpimg
 import numpy as np
 import pytest
 
-from ofbe_data.convergence import convergence_index, read_recommendation
-from ofbe_data.errors import OfbeError
-from ofbe_data.label_cli import expand_sessions
-from ofbe_data.labels import LabelParams, label_session
+from ofbe_data.cli import convergence as convergence_cli
+from ofbe_data.core.errors import OfbeError
+from ofbe_data.labelling.batch import expand_sessions
+from ofbe_data.labelling.convergence import convergence_index, read_recommendation
+from ofbe_data.labelling.labels import LabelParams, label_session
+from ofbe_data.reports import convergence as cr
+from ofbe_data.reports.convergence import ConvergenceParams, analyse, write_report
 from ofbe_data.simulator import load_config, simulate_campaign
-from ofbe_model import convergence_report as cr
-from ofbe_model.convergence_report import ConvergenceParams, analyse, write_report
 
 FILES = ("convergence.json", "convergence.md", "convergence_histogram.png", "convergence_example.png",
          "convergence_indices.csv", "allan.csv")
@@ -104,7 +105,7 @@ def test_read_recommendation_errors(tmp_path) -> None:
 
 def test_cli_on_the_tiny_example(examples, tmp_path, capsys) -> None:
     out = tmp_path / "rep"
-    assert cr.main([str(examples / "tiny-gravity-aligned"), "--out", str(out), "--quiet"]) == 0
+    assert convergence_cli.main([str(examples / "tiny-gravity-aligned"), "--out", str(out), "--quiet"]) == 0
     doc = json.loads((out / "convergence.json").read_text())
     assert doc["campaigns"] == ["tiny-gravity-aligned"]
     # tiny recordings are too short for the Allan curves; the rest of the report is there
@@ -114,21 +115,21 @@ def test_cli_on_the_tiny_example(examples, tmp_path, capsys) -> None:
 
 
 def test_cli_bad_inputs(examples, tmp_path, capsys) -> None:
-    assert cr.main([str(tmp_path / "missing"), "--out", str(tmp_path / "o")]) == 2
+    assert convergence_cli.main([str(tmp_path / "missing"), "--out", str(tmp_path / "o")]) == 2
     assert "missing: expected a session or campaign folder" in capsys.readouterr().err
     params = tmp_path / "p.yaml"
     params.write_text("convergence:\n  axis: w\n")
-    assert cr.main([str(examples / "tiny-gravity-aligned"), "--params", str(params),
+    assert convergence_cli.main([str(examples / "tiny-gravity-aligned"), "--params", str(params),
                     "--out", str(tmp_path / "o")]) == 2
     assert "convergence.axis: expected x, y or z, found 'w'" in capsys.readouterr().err
-    assert cr.main([str(examples / "tiny-gravity-aligned"), "--example", "no/such/row", "--quiet",
-                    "--out", str(tmp_path / "o")]) == 1
+    assert convergence_cli.main([str(examples / "tiny-gravity-aligned"), "--example", "no/such/row",
+                                 "--quiet", "--out", str(tmp_path / "o")]) == 1
     assert "--example: expected SESSION/RECORDING/DEVICE" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()
 
 
 def test_convergence_index_agrees_with_step_average() -> None:
-    from ofbe_data.convergence import step_average
+    from ofbe_data.labelling.convergence import step_average
 
     x = np.random.default_rng(3).normal(0.0, 0.034, 9000)
     k = convergence_index(x)

@@ -17,22 +17,17 @@ import pandas as pd
 import pytest
 from scipy.spatial.transform import Rotation
 
-from ofbe_data.orientation import nearest_axis
-from ofbe_model.base import EstimatorError, estimator_names, make_estimator
-from ofbe_model.estimators import (
-    GRAVITY_PRIOR_FORMAT,
-    LSTRF,
-    MG,
+from ofbe_data.labelling.orientation import nearest_axis
+from ofbe_model.estimators.base import EstimatorError, estimator_names, make_estimator
+from ofbe_model.estimators.common import GRAVITY_PRIOR_FORMAT, MG, nearest_axes
+from ofbe_model.estimators.oracle import Oracle
+from ofbe_model.estimators.physics import LSTRF, LevelMean, Won2009, won2009_solve
+from ofbe_model.estimators.priors import (
     GravityPrior,
-    LevelMean,
-    Oracle,
     PriorMean,
-    Won2009,
     condition_on_norm,
     direction_prior,
     mixture_moments,
-    nearest_axes,
-    won2009_solve,
 )
 
 G = 9.795382950829522

@@ -1,4 +1,4 @@
-"""reports/index.md (ofbe_model.index_report) on a small fake project tree."""
+"""reports/index.md (ofbe_data.reports.index) on a small fake project tree."""
 
 from __future__ import annotations
 
@@ -13,8 +13,9 @@ import pandas as pd
 import pytest
 
 from ofbe_data import __version__
-from ofbe_data.fidelity import MG
-from ofbe_model.index_report import build_index, main, markdown_section, read_timings, write_index
+from ofbe_data.cli.index import main
+from ofbe_data.dataset.fidelity import MG
+from ofbe_data.reports.index import build_index, markdown_section, read_timings, write_index
 
 PNG = b"\x89PNG\r\n\x1a\n" + b"\x00" * 16
 SECTIONS = [

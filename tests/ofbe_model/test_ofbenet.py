@@ -18,22 +18,16 @@ import pandas as pd
 import pytest
 import tensorflow as tf
 
-from ofbe_data.atomic import atomic_directory
-from ofbe_data.datastore import DatasetInfo, WindowWriter
-from ofbe_data.errors import ConfigError
-from ofbe_model.base import EstimatorError, make_estimator
-from ofbe_model.ofbenet import (
-    FILTERS,
-    SIDECAR_NAME,
-    Destandardise,
-    OFBENet,
-    OFBENetParams,
-    Standardise,
-    build_ofbenet,
-    feature_length,
-    group_validation_split,
-)
-from ofbe_model.train_cli import dataset_dirname, main, read_params, read_seed_count
+from ofbe_data.core.atomic import atomic_directory
+from ofbe_data.core.errors import ConfigError
+from ofbe_data.dataset.store import DatasetInfo
+from ofbe_data.dataset.writer import WindowWriter
+from ofbe_model.cli.train import main
+from ofbe_model.estimators.base import EstimatorError, make_estimator
+from ofbe_model.ofbenet.layers import Destandardise, Standardise, build_ofbenet, feature_length
+from ofbe_model.ofbenet.network import OFBENet, group_validation_split
+from ofbe_model.ofbenet.params import FILTERS, SIDECAR_NAME, OFBENetParams
+from ofbe_model.ofbenet.training import dataset_dirname, read_params, read_seed_count
 
 T = 200
 G = 9.81
@@ -167,7 +161,7 @@ def test_xla_after_op_determinism_warns() -> None:
 def test_two_xla_fits_are_identical_in_a_fresh_process() -> None:
     # a fresh process: the fits above enabled op determinism, which makes Keras turn XLA off
     code = ("import numpy as np, pandas as pd, tensorflow as tf\n"
-            "from ofbe_model.ofbenet import OFBENet\n"
+            "from ofbe_model.ofbenet.network import OFBENet\n"
             "rng = np.random.default_rng(0)\n"
             "x = rng.normal(size=(16, 200, 3)).astype(np.float32); y = rng.normal(size=(16, 3))\n"
             "meta = pd.DataFrame({'device': ['d1'] * 16, 'g_local': 9.81})\n"
@@ -192,7 +186,7 @@ def test_save_then_load_in_a_fresh_process_predicts_identically(fitted, tmp_path
     assert sorted(p.name for p in path.parent.iterdir()) == ["fold-0.keras"]  # no temporary left
     np.save(tmp_path / "x.npy", xt)
     code = ("import sys, numpy as np, pandas as pd\n"
-            "from ofbe_model.ofbenet import OFBENet\n"
+            "from ofbe_model.ofbenet.network import OFBENet\n"
             "m = OFBENet.load(sys.argv[1]); x = np.load(sys.argv[2])\n"
             "meta = pd.DataFrame({'device': ['d1'] * len(x), 'g_local': 9.81})\n"
             "np.save(sys.argv[3], m.predict(x, meta))\n")
@@ -316,7 +310,8 @@ def test_ofbe_train_writes_models_curves_and_summary(tiny, tmp_path, capsys) -> 
     base = [str(tiny), "--protocol", "grouped", "--out", str(out), "--max-epochs", "2"]
     assert main([*base, "--folds", "0", "--seeds", "2"]) == 0
     err = capsys.readouterr().err
-    assert "c/d1 grouped fold 0 seed 0" in err and "c/d2 grouped fold 0 seed 1" in err
+    assert "c/d1 fold 0 seed 0" in err and "c/d2 fold 0 seed 1" in err and "epoch 1/2" in err
+    assert "Epoch" not in err and "step" not in err  # no Keras per-epoch lines
     assert main([*base, "--folds", "1", "--quiet"]) == 0
     assert capsys.readouterr().err == ""
     for dev in ("d1", "d2"):
@@ -377,3 +372,31 @@ def test_ofbe_train_usage_errors_exit_2(tiny, tmp_path, capsys, write_text) -> N
     assert "--max-epochs" in capsys.readouterr().err
     assert not (tmp_path / "m").exists()
     assert read_params(write_text("ok.yaml", "train:\n  dropout: 0.3\n")).dropout == 0.3
+
+
+NOISE = ("I0000", "E0000", "W0000", "absl::InitializeLog", "cuda", "oneDNN", "cpu_feature_guard", "NodeDef")
+
+
+def test_train_and_predict_print_no_tensorflow_start_up_lines(tiny, tmp_path) -> None:
+    """The terminal shows progress and results, not TensorFlow's start-up or graph messages;
+    ``--verbose`` (or OFBE_VERBOSE=1) lets them through."""
+    env = {k: v for k, v in os.environ.items() if k not in ("TF_CPP_MIN_LOG_LEVEL", "OFBE_VERBOSE")}
+    out = tmp_path / "models"
+    train = subprocess.run([sys.executable, "-m", "ofbe_model.cli.train", str(tiny), "--protocol", "grouped",
+                            "--out", str(out), "--folds", "0", "--max-epochs", "1"],
+                           capture_output=True, text=True, env=env, cwd=ROOT, timeout=300)
+    assert train.returncode == 0, train.stderr[-2000:]
+    assert "ofbe-train grouped" in train.stderr and "trained grouped" in train.stderr
+    assert not [m for m in NOISE if m in train.stderr], train.stderr[-2000:]
+    model = out / "c__d1" / "grouped" / "fold-0.seed-0.keras"
+    session = ROOT / "raw" / "examples" / "tiny-gravity-aligned" / "ga-pc001"
+    predict = subprocess.run([sys.executable, "-m", "ofbe_model.cli.predict", str(model), str(session),
+                              "--window-length", str(T)], capture_output=True, text=True, env=env, cwd=ROOT,
+                             timeout=300)
+    assert predict.returncode == 0, predict.stderr[-2000:]
+    assert '"bias_m_s2"' in predict.stdout
+    assert not [m for m in NOISE if m in predict.stderr], predict.stderr[-2000:]
+    loud = subprocess.run([sys.executable, "-m", "ofbe_model.cli.predict", str(model), str(session),
+                           "--window-length", str(T), "--verbose"], capture_output=True, text=True, env=env,
+                          cwd=ROOT, timeout=300)
+    assert loud.returncode == 0 and [m for m in NOISE if m in loud.stderr]

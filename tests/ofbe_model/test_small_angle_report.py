@@ -4,7 +4,7 @@ from pathlib import Path
 import matplotlib.image as mpimg
 import pytest
 
-from ofbe_model.small_angle_report import main
+from ofbe_data.cli.small_angle import main
 
 FILES = ("small_angle.json", "small_angle.png", "small_angle_profile.png", "small_angle_profile.csv",
          "small_angle.md")

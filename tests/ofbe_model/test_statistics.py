@@ -11,7 +11,7 @@ import pandas as pd
 import pytest
 from scipy import stats
 
-from ofbe_model.statistics import (
+from ofbe_model.benchmark.statistics import (
     T_CRITICAL_DF4,
     check_predictions,
     fold_metrics,

@@ -17,8 +17,8 @@ import pyarrow.parquet as pq
 import pytest
 import yaml
 
-from ofbe_data.datastore import SCHEMA_VERSION, verify_dataset
-from ofbe_data.labelstore import LABEL_SCHEMA
+from ofbe_data.dataset.store import SCHEMA_VERSION, verify_dataset
+from ofbe_data.labelling.store import LABEL_SCHEMA
 
 ROOT = Path(__file__).resolve().parents[2]
 STAGES = ("simulate", "convergence", "small_angle", "label", "datasets", "train", "benchmark", "index")

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from ofbe_data.labels import load_label_params
+from ofbe_data.labelling.labels import load_label_params
 from pipelines import label, simulate
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -86,8 +86,8 @@ def test_stages_depend_on_every_module_they_run(stage, entry):
 def test_label_stage_takes_min_samples_from_the_convergence_report(tmp_path, monkeypatch):
     import json
 
-    from ofbe_data.convergence import REPORT_FORMAT
-    from ofbe_data.labelstore import read_provenance
+    from ofbe_data.labelling.convergence import REPORT_FORMAT
+    from ofbe_data.labelling.store import read_provenance
 
     campaigns = {"small-ga": {"profile": "tiny-gravity-aligned", "seed": 3}}
     params = {"simulate": {"jobs": 1, "campaigns": campaigns},
@@ -108,9 +108,9 @@ def test_label_stage_takes_min_samples_from_the_convergence_report(tmp_path, mon
 
 
 def test_datasets_stage_builds_each_campaign(tmp_path, monkeypatch):
-    from ofbe_data.datastore import verify_dataset
-    from ofbe_data.label_cli import expand_sessions, label_sessions
-    from ofbe_data.labels import LabelParams
+    from ofbe_data.dataset.store import verify_dataset
+    from ofbe_data.labelling.batch import expand_sessions, label_sessions
+    from ofbe_data.labelling.labels import LabelParams
     from ofbe_data.simulator import load_config, simulate_campaign
     from pipelines import datasets
 
@@ -129,8 +129,8 @@ def test_datasets_stage_builds_each_campaign(tmp_path, monkeypatch):
 
 
 def test_profiles_merge_over_params(tmp_path):
-    from ofbe_data.errors import ConfigError
-    from ofbe_data.pipeline_params import load_params, merge, resolved_params_file
+    from ofbe_data.core.errors import ConfigError
+    from ofbe_data.io.pipeline_params import load_params, merge, resolved_params_file
 
     assert merge({"a": {"b": 1, "c": [1]}, "d": 2}, {"a": {"c": [2]}, "e": 3}) == {
         "a": {"b": 1, "c": [2]}, "d": 2, "e": 3}

@@ -14,7 +14,7 @@ are left out. The files are written with the toolkit's own writers, in the gener
 ``csv`` format, counts as logged and time = sample index / 204.8 Hz.
 
 ``--compare`` reads the written session back through the toolkit's readers, fits
-:func:`ofbe_data.multiposition.fit_poses` and prints it beside imucal's own Ferraris result
+:func:`ofbe_data.labelling.multiposition.fit_poses` and prints it beside imucal's own Ferraris result
 (``tests/data/imucal-ferraris/example_cal.json``) and the classic six-position estimate;
 docs/real-data.md reports and explains the output.
 """
@@ -30,8 +30,10 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import least_squares
 
-from ofbe_data.gravity import G0
-from ofbe_data.manifest import (
+from ofbe_data.io.formats import read_device_file
+from ofbe_data.io.formats.generic_csv import write_generic_csv
+from ofbe_data.io.gravity import G0
+from ofbe_data.io.manifest import (
     CsvMapping,
     DeviceSpec,
     RecordingSpec,
@@ -40,8 +42,7 @@ from ofbe_data.manifest import (
     load_manifest,
     write_manifest,
 )
-from ofbe_data.multiposition import _jacobian, _residuals, _start, apparent_biases, fit_poses
-from ofbe_data.rawio import read_device_file, write_generic_csv
+from ofbe_data.labelling.multiposition import _jacobian, _residuals, _start, apparent_biases, fit_poses
 
 ROOT = Path(__file__).resolve().parents[3]
 SOURCE = ROOT / "tests" / "data" / "imucal-ferraris" / "annotated_session.csv"

@@ -1,0 +1,98 @@
+"""What every command line shares: exit statuses, the one-line failure, ``--jobs`` and
+``--params``, and keeping library start-up noise off the terminal.
+
+Every command (``ofbe_data.cli.*``, ``ofbe_model.cli.*``) is a ``main(argv) -> int`` that
+parses its arguments, calls its wing, and turns an expected error into one line on stderr,
+``<prog>: error: <message>``, and an exit status: :data:`EXIT_OK`, :data:`EXIT_DATA` (the
+input data are bad or the work failed) or :data:`EXIT_USAGE` (the command line or a
+parameter file is wrong).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from types import ModuleType
+
+EXIT_OK = 0
+"""Success (or, for ``ofbe-label``, every session labelled or cleanly rejected)."""
+EXIT_DATA = 1
+"""Bad input data or a failed computation; the message names the file."""
+EXIT_USAGE = 2
+"""A usage or parameter error."""
+
+VERBOSE_ENV = "OFBE_VERBOSE"
+"""Set to 1 to let TensorFlow's and absl's start-up messages through (``--verbose`` does too)."""
+
+
+def fail(prog: str, message: str, code: int) -> int:
+    """Print ``<prog>: error: <message>`` on stderr and return ``code``."""
+    print(f"{prog}: error: {message}", file=sys.stderr)
+    return code
+
+
+def add_jobs(parser: argparse.ArgumentParser, what: str = "worker processes") -> None:
+    """``--jobs N`` (default 1)."""
+    parser.add_argument("--jobs", type=int, default=1, help=f"{what} (default: %(default)s)")
+
+
+def add_params(parser: argparse.ArgumentParser, section: str, what: str) -> None:
+    """``--params FILE``: a YAML file whose ``<section>:`` section sets ``what``."""
+    parser.add_argument("--params", help=f"YAML file whose '{section}:' section sets {what}")
+
+
+def add_verbose(parser: argparse.ArgumentParser) -> None:
+    """``--verbose``: let the libraries' start-up messages through (see :func:`quiet_libraries`)."""
+    parser.add_argument("--verbose", action="store_true",
+                        help=f"show TensorFlow's start-up messages (also {VERBOSE_ENV}=1)")
+
+
+def _verbose(verbose: bool) -> bool:
+    return verbose or os.environ.get(VERBOSE_ENV, "") not in ("", "0")
+
+
+def quiet_libraries(verbose: bool = False) -> None:
+    """Keep TensorFlow's and absl's messages off the terminal unless asked for.
+
+    TensorFlow's C++ core logs CPU-instruction notes, CUDA probing and graph warnings
+    (``E0000 … NodeDef mentions attribute …``) to stderr. This sets ``TF_CPP_MIN_LOG_LEVEL=3``
+    (unless the environment sets it) and lowers the TensorFlow, absl and Keras Python loggers
+    to errors. With ``verbose`` or ``OFBE_VERBOSE=1`` nothing is changed. Call it before
+    TensorFlow is imported; :func:`import_tensorflow` does.
+    """
+    if verbose:
+        os.environ[VERBOSE_ENV] = "1"  # for the TensorFlow import that comes later
+    if _verbose(verbose):
+        return
+    os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "3")
+    import logging
+
+    for name in ("tensorflow", "absl", "keras"):
+        logging.getLogger(name).setLevel(logging.ERROR)
+
+
+def import_tensorflow(verbose: bool = False) -> ModuleType:
+    """``import tensorflow`` without its start-up lines on the terminal (see :func:`quiet_libraries`).
+
+    Some of those lines (absl's "All log messages before absl::InitializeLog()…", the CUDA
+    stub's probe) are written by C++ code before any log level applies, so the process's
+    stderr is pointed at /dev/null while the import runs; an import error is still raised,
+    as a Python exception, after stderr is back.
+    """
+    if "tensorflow" in sys.modules or _verbose(verbose):
+        import tensorflow
+
+        return tensorflow
+    quiet_libraries(verbose)
+    sys.stderr.flush()
+    saved = os.dup(2)
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, 2)
+        import tensorflow
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+        os.close(devnull)
+    return tensorflow

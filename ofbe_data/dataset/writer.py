@@ -1,0 +1,357 @@
+"""Writing a dataset: window metadata normalised and checked, windows streamed into HDF5 + Parquet."""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import sys
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from ofbe_data import __version__
+from ofbe_data.core.atomic import write_bytes_atomic
+from ofbe_data.dataset.package import write_package_files
+from ofbe_data.dataset.store import (
+    _COLUMN_BY_NAME,
+    _PER_WINDOW,
+    DATASET_FORMAT,
+    FRAME,
+    H5_LIBVER,
+    H5_NAME,
+    PARQUET_NAME,
+    RECORDING_KEY,
+    SCHEMA_VERSION,
+    UNITS,
+    WINDOW_COLUMNS,
+    DatasetError,
+    DatasetInfo,
+    _all_columns,
+    _arrow_schema,
+    fold_column,
+)
+
+_MERGE_BLOCKS = 256  # metadata blocks merged into one array per column, to bound per-array overhead
+
+# ---------------------------------------------------------------------------------------------
+# Validation of appended metadata
+
+
+def _as_strings(col: pd.Series, name: str, path: Path) -> np.ndarray:
+    values = col.tolist()
+    for i, v in enumerate(values):
+        if not isinstance(v, str):
+            raise DatasetError(path, "strings (no nulls)", f"{v!r} ({type(v).__name__}) in row {i}", name)
+    # interned: the few distinct ids repeat on every window, so rows share one object each
+    return np.array([sys.intern(str(v)) for v in values], dtype=object)
+
+
+def _as_ints(col: pd.Series, name: str, path: Path) -> np.ndarray:
+    if pd.api.types.is_bool_dtype(col.dtype) or not pd.api.types.is_integer_dtype(col.dtype):
+        raise DatasetError(path, "an integer column", f"dtype {col.dtype}", name)
+    if col.isna().any():
+        raise DatasetError(path, "integers (no nulls)", f"{int(col.isna().sum())} nulls", name)
+    return col.to_numpy(dtype=np.int64)
+
+
+def _as_floats(col: pd.Series, name: str, nullable: bool, path: Path) -> np.ndarray:
+    if pd.api.types.is_numeric_dtype(col.dtype) and not pd.api.types.is_bool_dtype(col.dtype):
+        arr = col.to_numpy(dtype=np.float64, na_value=np.nan)
+    elif col.dtype == object and all(
+            v is None or v is pd.NA or (isinstance(v, int | float | np.integer | np.floating)
+                                        and not isinstance(v, bool | np.bool_)) for v in col):
+        arr = np.array([np.nan if v is None or v is pd.NA else float(v) for v in col], dtype=np.float64)
+    else:
+        raise DatasetError(path, "a numeric column", f"dtype {col.dtype}", name)
+    bad = ~np.isfinite(arr)
+    if nullable:
+        bad &= ~np.isnan(arr)
+    if bad.any():
+        what = "finite numbers or nulls" if nullable else "finite numbers (no nulls)"
+        raise DatasetError(path, what, f"{arr[bad][0]!r} in row {int(np.flatnonzero(bad)[0])}", name)
+    return arr
+
+
+def _normalise_meta(meta: pd.DataFrame, protocols: Mapping[str, Mapping[str, Any]],
+                    path: Path) -> dict[str, np.ndarray]:
+    """Check one block of window metadata and return its columns as numpy arrays.
+
+    Parameters
+    ----------
+    meta
+        n rows, the columns :data:`WINDOW_COLUMNS` less ``window_id`` plus ``fold_<protocol>``
+        for every protocol (any order, nothing else).
+    protocols
+        The dataset's protocols.
+    path
+        File named in errors.
+
+    Returns
+    -------
+    dict
+        Column name → array of n values (object arrays of ``str``, int64, float64 with NaN
+        for nulls), in file order.
+    """
+    if not isinstance(meta, pd.DataFrame):
+        raise DatasetError(path, "window metadata as a pandas DataFrame", type(meta).__name__, "meta")
+    expected = [*WINDOW_COLUMNS[1:], *(fold_column(p) for p in protocols)]
+    columns = [str(c) for c in meta.columns]
+    dup = sorted({c for c in columns if columns.count(c) > 1})
+    missing = [c for c in expected if c not in columns]
+    extra = [c for c in columns if c not in expected]
+    if dup or missing or extra:
+        found = "; ".join(f"{k} {v}" for k, v in (("missing", missing), ("unexpected", extra),
+                                                   ("duplicated", dup)) if v)
+        raise DatasetError(path, f"exactly the columns {expected}", found, "meta")
+    out: dict[str, np.ndarray] = {}
+    for name in expected:
+        col = meta[name]
+        doc = _COLUMN_BY_NAME.get(name)
+        if doc is None:  # fold column
+            arr = _as_ints(col, name, path)
+            n_folds = protocols[name[len("fold_"):]].get("n_folds")
+            upper = n_folds - 1 if n_folds is not None else None
+            bad = (arr < -1) | ((arr > upper) if upper is not None else False)
+            if bad.any():
+                rng_txt = f"-1..{upper}" if upper is not None else ">= -1"
+                raise DatasetError(path, f"fold indices in {rng_txt}", f"{arr[bad][0]}", name)
+        elif doc.kind == "string":
+            arr = _as_strings(col, name, path)
+        elif doc.kind == "int":
+            arr = _as_ints(col, name, path)
+            if name in ("window_index", "start_sample") and (arr < 0).any():
+                raise DatasetError(path, "values >= 0", f"{arr[arr < 0][0]}", name)
+        else:
+            arr = _as_floats(col, name, doc.nullable, path)
+        out[name] = arr
+    return out
+
+
+def _check_recordings(cols: Mapping[str, np.ndarray], path: Path) -> None:
+    """Every recording-level column is constant within a recording; window indices are unique."""
+    frame = pd.DataFrame({k: v for k, v in cols.items()})
+    keys = list(RECORDING_KEY)
+    dup = frame.duplicated([*keys, "window_index"])
+    if dup.any():
+        row = frame.loc[dup].iloc[0]
+        raise DatasetError(path, "one window per (recording, device, window_index)",
+                           f"window_index {row['window_index']} twice for "
+                           f"{'/'.join(str(row[k]) for k in keys)}", "window_index")
+    level = [c for c in frame.columns if c not in (*keys, *_PER_WINDOW)]
+    counts = frame.groupby(keys, sort=False, dropna=False)[level].nunique(dropna=False)
+    bad = counts > 1
+    if bad.to_numpy().any():
+        column = next(c for c in level if bad[c].any())
+        group = counts.index[bad[column].to_numpy()][0]
+        raise DatasetError(path, "one value per recording (it labels the whole recording)",
+                           f"{int(counts.loc[group, column])} different values for "
+                           f"{'/'.join(map(str, group))}", column)
+
+
+# ---------------------------------------------------------------------------------------------
+# Writing
+
+
+def _merge(blocks: Sequence[Mapping[str, np.ndarray]]) -> dict[str, np.ndarray]:
+    """Concatenate metadata blocks column by column (columns of the first block, in order)."""
+    return {name: np.concatenate([b[name] for b in blocks]) for name in blocks[0]}
+
+
+def _set_attrs(obj: h5py.HLObject, attrs: Mapping[str, Any]) -> None:
+    for key, value in attrs.items():
+        obj.attrs[key] = value
+
+
+def _root_attrs(info: DatasetInfo) -> dict[str, Any]:
+    return {
+        "schema_version": SCHEMA_VERSION, "units": UNITS, "frame": FRAME,
+        "window_length": np.int64(info.window_length), "stride": np.int64(info.stride),
+        "fs_hz": np.float64(info.fs_hz), "name": info.name, "campaign": info.campaign, "kind": info.kind,
+        "protocols": json.dumps(info.protocols, allow_nan=False), "toolkit_version": __version__,
+    }
+
+
+def _parquet_provenance(info: DatasetInfo) -> dict[str, Any]:
+    return {"format": DATASET_FORMAT, "schema_version": SCHEMA_VERSION, "name": info.name,
+            "campaign": info.campaign, "window_length": info.window_length, "stride": info.stride,
+            "units": UNITS, "protocols": info.protocols}
+
+
+def _parquet_bytes(table: pa.Table) -> bytes:
+    buf = io.BytesIO()
+    pq.write_table(table, buf, compression="zstd")
+    return buf.getvalue()
+
+
+class WindowWriter:
+    """Write ``windows.h5`` and ``windows.parquet`` window block by window block, then the rest.
+
+    Use as a context manager inside :func:`ofbe_data.core.atomic.atomic_directory`::
+
+        with atomic_directory(out) as tmp, WindowWriter(tmp, info) as writer:
+            for X, meta in blocks:          # e.g. one recording at a time
+                writer.append(X, meta)
+
+    ``X`` goes to the HDF5 file at once and is not kept; only the (small) metadata is held
+    until the end. On a clean exit the writer completes ``windows.h5`` (``y`` and ``meta/``),
+    writes ``windows.parquet`` and then :func:`write_package_files`. On an exception it closes
+    the HDF5 file, removes its temporary name and re-raises; the caller discards the folder.
+
+    Parameters
+    ----------
+    folder
+        Existing folder to write into; it must not hold ``windows.h5`` or ``windows.parquet``.
+    info
+        What the dataset is.
+    """
+
+    def __init__(self, folder: str | Path, info: DatasetInfo) -> None:
+        self.folder = Path(folder)
+        self.info = info
+        self._h5_path = self.folder / H5_NAME
+        self._parquet_path = self.folder / PARQUET_NAME
+        self._tmp_h5 = self.folder / f".{H5_NAME}.partial"
+        self._file: h5py.File | None = None
+        self._x: h5py.Dataset | None = None
+        self._blocks: list[dict[str, np.ndarray]] = []  # metadata only (1-D arrays), merged in batches
+        self._pending: list[dict[str, np.ndarray]] = []
+        self._n = 0
+
+    @property
+    def n_windows(self) -> int:
+        """Windows appended so far."""
+        return self._n
+
+    def __enter__(self) -> WindowWriter:
+        if not self.folder.is_dir():
+            raise DatasetError(self.folder, "an existing folder to write the dataset into", "none")
+        for p in (self._h5_path, self._parquet_path):
+            if p.exists():
+                raise DatasetError(p, "a folder without this file (a fresh dataset)", "an existing file")
+        if self._file is not None:
+            raise DatasetError(self._h5_path, "a writer entered once", "a second `with`")
+        t = self.info.window_length
+        self._file = h5py.File(self._tmp_h5, "w", libver=H5_LIBVER)
+        try:
+            _set_attrs(self._file, _root_attrs(self.info))
+            self._x = self._file.create_dataset(
+                "X", shape=(0, t, 3), maxshape=(None, t, 3), dtype=np.float32, chunks=(1, t, 3),
+                compression="gzip", compression_opts=4, shuffle=True, fletcher32=True, track_times=False)
+            _set_attrs(self._x, {"units": UNITS, "frame": FRAME, "description":
+                                 "specific force measured by the accelerometer, sensor frame; axes are "
+                                 "(window, sample, x/y/z)"})
+        except BaseException:
+            self._abort()
+            raise
+        return self
+
+    def append(self, X: np.ndarray, meta: pd.DataFrame) -> None:
+        """Append n windows.
+
+        Parameters
+        ----------
+        X
+            (n, T, 3) specific force, m/s², sensor frame; stored as float32.
+        meta
+            n rows: :data:`WINDOW_COLUMNS` less ``window_id`` plus one ``fold_<protocol>``
+            column per protocol. ``y`` is taken from ``bias_x/y/z``; ``window_id`` is assigned
+            here (the running row index).
+
+        Raises
+        ------
+        DatasetError
+            On a wrong shape, a non-finite sample, missing/unexpected columns or a wrong dtype.
+        """
+        if self._x is None:
+            raise DatasetError(self._h5_path, "append() inside `with WindowWriter(...)`", "a closed writer")
+        t = self.info.window_length
+        arr = np.asarray(X)
+        if arr.ndim != 3 or arr.shape[1:] != (t, 3):
+            raise DatasetError(self._h5_path, f"X of shape (n, {t}, 3)", f"shape {arr.shape}", "X")
+        if arr.dtype.kind not in "fiu":
+            raise DatasetError(self._h5_path, "a real numeric X", f"dtype {arr.dtype}", "X")
+        if len(meta) != arr.shape[0]:
+            raise DatasetError(self._parquet_path, f"{arr.shape[0]} metadata rows (one per window of X)",
+                               f"{len(meta)}", "meta")
+        x32 = arr.astype(np.float32, copy=False)
+        finite = np.isfinite(x32)
+        if not finite.all():
+            raise DatasetError(self._h5_path, "finite samples (after conversion to float32)",
+                               f"{int((~finite).sum())} non-finite", "X")
+        cols = _normalise_meta(meta, self.info.protocols, self._parquet_path)
+        n = arr.shape[0]
+        if n == 0:
+            return
+        start = self._n
+        self._x.resize(start + n, axis=0)
+        self._x[start:start + n] = x32
+        self._pending.append(cols)
+        if len(self._pending) >= _MERGE_BLOCKS:
+            self._blocks.append(_merge(self._pending))
+            self._pending = []
+        self._n = start + n
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: object) -> None:
+        if exc_type is not None:
+            self._abort()
+            return
+        try:
+            self._finish()
+        except BaseException:
+            self._abort()
+            raise
+
+    def _abort(self) -> None:
+        if self._file is not None:
+            self._file.close()
+        self._file = None
+        self._x = None
+        self._tmp_h5.unlink(missing_ok=True)
+
+    def _finish(self) -> None:
+        if self._file is None:
+            raise DatasetError(self._h5_path, "a writer inside `with`", "a closed writer")
+        if self._n == 0:
+            raise DatasetError(self._h5_path, "at least one window", "0 windows appended")
+        names = [c.name for c in _all_columns(list(self.info.protocols))]
+        cols = {"window_id": np.arange(self._n, dtype=np.int64), **_merge([*self._blocks, *self._pending])}
+        self._blocks, self._pending = [], []
+        _check_recordings(cols, self._parquet_path)
+        y = np.column_stack([cols["bias_x"], cols["bias_y"], cols["bias_z"]]).astype(np.float64)
+        f = self._file
+        ds_y = f.create_dataset("y", data=y, chunks=(min(self._n, 4096), 3), compression="gzip",
+                                compression_opts=4, shuffle=True, fletcher32=True, track_times=False)
+        _set_attrs(ds_y, {"units": UNITS, "frame": FRAME, "description":
+                          "apparent-bias label b_app of the window's recording (bias_x/y/z), sensor frame"})
+        group = f.create_group("meta")
+        group.attrs["columns"] = json.dumps(names)
+        group.attrs["description"] = "one dataset per column of windows.parquet, same row order; NaN = null"
+        for col in _all_columns(list(self.info.protocols)):
+            values = cols[col.name]
+            if col.kind == "string":
+                ds = group.create_dataset(col.name, data=values, dtype=h5py.string_dtype("utf-8"),
+                                          track_times=False)
+            else:
+                ds = group.create_dataset(col.name, data=values, track_times=False)
+            ds.attrs["description"] = col.description
+            if col.unit is not None:
+                ds.attrs["units"] = col.unit
+        f.close()
+        self._file = None
+        self._x = None
+        os.replace(self._tmp_h5, self._h5_path)
+        schema = _arrow_schema(list(self.info.protocols))
+        arrays = [pa.array(cols[fld.name].tolist() if fld.type == pa.string() else cols[fld.name],
+                           type=fld.type, from_pandas=True) for fld in schema]
+        table = pa.Table.from_arrays(arrays, schema=schema).replace_schema_metadata(
+            {b"ofbe": json.dumps(_parquet_provenance(self.info), allow_nan=False).encode()})
+        write_bytes_atomic(self._parquet_path, _parquet_bytes(table))
+        write_package_files(self.folder, self.info)

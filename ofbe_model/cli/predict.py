@@ -1,0 +1,77 @@
+"""``ofbe-predict``: a saved model's bias estimates for session folders or bare device files
+(ofbe_model.predict).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Sequence
+from typing import Any
+
+from ofbe_data.core.cli import add_verbose, quiet_libraries
+from ofbe_data.core.errors import OfbeError
+from ofbe_data.io.gravity import G0 as STANDARD_GRAVITY
+from ofbe_model.estimators.base import EstimatorError
+from ofbe_model.predict import DEFAULT_WINDOW, load_model, predict, targets, window_length_of
+
+PROG = "ofbe-predict"
+
+
+def _table(results: Sequence[dict[str, Any]], method: str) -> str:
+    g0 = 9.80665e-3
+    head = "".join(f"{h:>9}" for h in ("bias x", "bias y", "bias z")) + "".join(
+        f"{h:>8}" for h in ("std x", "std y", "std z"))
+    lines = [f"{'device':<14}{head}  file   ({method}; mg)"]
+    for r in results:
+        if "error" in r:
+            lines.append(f"{r['device']:<14}{'—':>9}{'—':>9}{'—':>9}{'':>24}  {r['file']}: {r['error']}")
+            continue
+        b = [v / g0 for v in r["bias_m_s2"]]
+        s = ["" if r["std_m_s2"] is None else f"{v / g0:.2f}" for v in (r["std_m_s2"] or [None] * 3)]
+        cells = "".join(f"{v:9.2f}" for v in b) + "".join(f"{v:>8}" for v in s)
+        lines.append(f"{r['device']:<14}{cells}  {r['file']}")
+    return "\n".join(lines)
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="ofbe-predict",
+                                description="Bias (and its standard deviation, where the method has one) of "
+                                            "stationary recordings from a saved OFBENet or gravity-prior.")
+    p.add_argument("model", help="saved model: .keras (OFBENet) or .json (gravity-prior)")
+    p.add_argument("recordings", nargs="+", help="session folders or raw device files")
+    p.add_argument("--device", help="device id for bare files (gravity-prior uses its per-device prior)")
+    p.add_argument("--g-local", type=float,
+                   help=f"local gravity for bare files, m/s² (default {STANDARD_GRAVITY})")
+    p.add_argument("--window-length", type=int, help="samples per window for models that take any length "
+                                                     f"(default {DEFAULT_WINDOW})")
+    p.add_argument("--output", choices=("json", "table"), default="json")
+    add_verbose(p)
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    quiet_libraries(args.verbose)
+    try:
+        model = load_model(args.model)
+        length = window_length_of(model) or args.window_length or DEFAULT_WINDOW
+        items = targets(args.recordings, args.device, args.g_local)
+        results = predict(model, items, length)
+    except OfbeError as exc:
+        print(f"ofbe-predict: error: {exc}", file=sys.stderr)
+        return 2 if isinstance(exc, EstimatorError) else 1
+    method = getattr(model, "name", type(model).__name__)
+    if args.output == "json":
+        print(json.dumps({"model": str(args.model), "method": method, "results": results}, indent=1))
+    else:
+        print(_table(results, method))
+    failed = [r for r in results if "error" in r]
+    for r in failed:
+        print(f"ofbe-predict: error: {r['file']}: {r['error']}", file=sys.stderr)
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
