@@ -1,7 +1,8 @@
 """DVC stage ``train``: OFBENet per benchmark dataset, protocol and fold into models/.
 
-Reads ``train`` (OFBENet parameters) and ``benchmark_run`` (which protocols run on which
-datasets) from params.yaml; all logic lives in :mod:`ofbe_model.ofbenet.training`.
+Reads ``train`` (OFBENet parameters), ``train_run`` (parallel fits) and ``benchmark_run``
+(which protocols run on which datasets) from params.yaml; all logic lives in
+:mod:`ofbe_model.ofbenet.training`.
 """
 
 from __future__ import annotations
@@ -13,12 +14,14 @@ from ofbe_model.cli.train import main as train_main
 
 
 def main(params_file: str = "params.yaml") -> int:
-    run = load_params(params_file)["benchmark_run"]
+    params = load_params(params_file)
+    run = params["benchmark_run"]
+    jobs = str(params.get("train_run", {}).get("jobs", 1))
     with resolved_params_file(params_file) as resolved:
         for protocol, campaigns in run["protocols"].items():
             for name in campaigns:
                 code = train_main([f"processed/datasets/{name}", "--protocol", protocol, "--out", "models",
-                                   "--params", resolved])
+                                   "--params", resolved, "--jobs", jobs])
                 if code:
                     return code
     return 0

@@ -10,7 +10,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from ofbe_data.core.cli import add_jobs, add_params, fail
+from ofbe_data.core.cli import add_jobs, add_params, command, fail
 from ofbe_data.core.errors import OfbeError
 from ofbe_data.io.typedconfig import read_section
 from ofbe_data.labelling.batch import expand_sessions
@@ -42,6 +42,7 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+@command(PROG)
 def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     try:

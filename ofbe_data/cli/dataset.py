@@ -19,7 +19,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from ofbe_data.core.cli import add_jobs, add_params, fail
+from ofbe_data.core.cli import add_jobs, add_params, command, fail
 from ofbe_data.core.errors import ConfigError, OfbeError
 from ofbe_data.dataset.build import build_dataset, dataset_params_from
 from ofbe_data.dataset.export import export_dataset
@@ -95,14 +95,18 @@ def _build(args: argparse.Namespace) -> int:
     return 0
 
 
+@command(PROG)
 def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     if args.command == "build":
         return _build(args)
     try:
         if args.command == "verify":
-            summary = verify_dataset(args.path)
-            print(f"ofbe-dataset: {args.path}: OK ({summary})")
+            s = verify_dataset(args.path)
+            print(f"ofbe-dataset: {args.path}: OK — {s['name']} ({s['schema_version']}): {s['n_windows']} "
+                  f"windows of {s['window_length']} samples from {s['n_recordings']} recordings of "
+                  f"{s['n_devices']} devices; protocols {', '.join(s['protocols'])}; "
+                  f"{len(s['files'])} files match their SHA-256 sums")
             return 0
         dest = export_dataset(args.path, args.out, title=args.title, licence=args.licence,
                               authors=tuple(args.author) if args.author else None, version=args.version,

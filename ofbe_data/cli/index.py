@@ -8,7 +8,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from ofbe_data.core.cli import fail
+from ofbe_data.core.cli import command, fail
 from ofbe_data.core.errors import OfbeError
 from ofbe_data.reports.index import (
     DEFAULT_CAMPAIGNS,
@@ -42,6 +42,7 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+@command(PROG)
 def main(argv: Sequence[str] | None = None) -> int:
     """Command line of ``reports/index.md``.
 

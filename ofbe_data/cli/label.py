@@ -10,12 +10,14 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
 
-from ofbe_data.core.cli import add_jobs, add_params, fail
+from ofbe_data.core.cli import add_jobs, add_params, command, fail
 from ofbe_data.core.errors import OfbeError
 from ofbe_data.labelling.batch import (
+    check_output_folder,
     expand_sessions,
     label_sessions,
 )
@@ -46,6 +48,7 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+@command(PROG)
 def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     try:
@@ -58,21 +61,35 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.jobs < 1:
             return fail(PROG, f"--jobs: expected an integer ≥ 1, found {args.jobs}", 2)
         folders = expand_sessions(args.paths)
+        check_output_folder(Path(args.out))
     except OfbeError as exc:
         return fail(PROG, str(exc), 2)
     jobs = min(args.jobs, os.cpu_count() or 1, len(folders))
-    outcomes = label_sessions(folders, params, Path(args.out), jobs, progress=not args.quiet)
+    try:
+        outcomes = label_sessions(folders, params, Path(args.out), jobs, progress=not args.quiet)
+    except OSError as exc:
+        return fail(PROG, f"{exc.filename or args.out}: {exc.strerror or exc}: the labels could not be "
+                          "written (every file is written whole or not at all; free space and rerun)", 1)
     failed = [o for o in outcomes if o.error]
     for o in failed:
-        print(f"ofbe-label: error: {o.error}", file=sys.stderr)
+        stale = (f" (removed its labels of an earlier run: {', '.join(map(str, o.removed))})"
+                 if o.removed else "")
+        print(f"ofbe-label: error: {o.error}{stale}", file=sys.stderr)
+    done = [o.labels for o in outcomes if o.labels is not None]
+    rows = sum(len(s.rows) for s in done)
+    rejected = [r for s in done for r in s.rejections]
     if not args.quiet:
-        done = [o.labels for o in outcomes if o.labels is not None]
-        rows = sum(len(s.rows) for s in done)
-        rejected = sum(len(s.rejections) for s in done)
         warnings = sum(len(s.warnings) for s in done)
         print(f"ofbe-label: {len(done)} sessions labelled, {len(failed)} failed; {rows} recordings "
-              f"labelled, {rejected} rejected, {warnings} warnings -> {args.out}", file=sys.stderr)
-    return 1 if failed else 0
+              f"labelled, {len(rejected)} rejected, {warnings} warnings -> {args.out}", file=sys.stderr)
+    if failed:
+        return 1
+    if rows == 0:
+        reasons = Counter(r.reason for r in rejected).most_common(3)
+        why = ", ".join(f"{n} {reason}" for reason, n in reasons) or "no recordings"
+        return fail(PROG, f"no recording was labelled ({why}; see the <session>.rejected.json files in "
+                          f"{args.out})", 1)
+    return 0
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -6,10 +6,13 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-from ofbe_data.core.cli import EXIT_USAGE, add_jobs, fail
+from ofbe_data.core.cli import EXIT_USAGE, add_jobs, command, fail
 from ofbe_data.core.errors import OfbeError
 
+PROG = "ofbe-simulate"
 
+
+@command(PROG)
 def main(argv: Sequence[str] | None = None) -> int:
     """``ofbe-simulate CONFIG_OR_PROFILE --out raw/<campaign> [--seed N]``.
 

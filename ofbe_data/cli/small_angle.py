@@ -10,6 +10,7 @@ import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+from ofbe_data.core.cli import command
 from ofbe_data.labelling.smallangle import (
     MEASURES,
 )
@@ -53,6 +54,7 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+@command(PROG)
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``ofbe-small-angle``.
 

@@ -11,9 +11,12 @@ parameter file is wrong).
 from __future__ import annotations
 
 import argparse
+import functools
 import os
 import sys
+from collections.abc import Callable
 from types import ModuleType
+from typing import Any
 
 EXIT_OK = 0
 """Success (or, for ``ofbe-label``, every session labelled or cleanly rejected)."""
@@ -24,6 +27,31 @@ EXIT_USAGE = 2
 
 VERBOSE_ENV = "OFBE_VERBOSE"
 """Set to 1 to let TensorFlow's and absl's start-up messages through (``--verbose`` does too)."""
+
+
+EXIT_INTERRUPTED = 130
+"""Stopped by Ctrl-C (128 + SIGINT, as shells report it)."""
+
+
+def command(prog: str) -> Callable[[Callable[..., int]], Callable[..., int]]:
+    """Decorate a command's ``main``: Ctrl-C prints one line and exits 130, no traceback.
+
+    Files are written atomically everywhere, so an interrupted run leaves whole files or none.
+    """
+    def wrap(main: Callable[..., int]) -> Callable[..., int]:
+        @functools.wraps(main)
+        def run(*args: Any, **kwargs: Any) -> int:
+            try:
+                return main(*args, **kwargs)
+            except KeyboardInterrupt:
+                print(f"{prog}: interrupted; files already written are whole, nothing partial is left",
+                      file=sys.stderr)
+                return EXIT_INTERRUPTED
+            except MemoryError:
+                return fail(prog, "ran out of memory (is a length or size parameter far too large?); "
+                                  "nothing partial was written", EXIT_DATA)
+        return run
+    return wrap
 
 
 def fail(prog: str, message: str, code: int) -> int:

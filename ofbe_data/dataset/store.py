@@ -100,6 +100,23 @@ class ChecksumError(DatasetError):
 # Columns
 
 
+def spdx_licence(value: str, source: str = "licence") -> str:
+    """``value`` as a normalised SPDX licence expression (``CC-BY-4.0``, ``MIT OR Apache-2.0``).
+
+    Raises
+    ------
+    ConfigError
+        Not a known SPDX licence id or expression (the message says where the list is).
+    """
+    from license_expression import get_spdx_licensing
+
+    info = get_spdx_licensing().validate(value)
+    if info.errors or not info.normalized_expression:
+        raise ConfigError(source, "licence", "an SPDX licence id such as CC-BY-4.0, CC0-1.0 or ODbL-1.0 "
+                          "(https://spdx.org/licenses/)", repr(value))
+    return str(info.normalized_expression)
+
+
 @dataclass(frozen=True)
 class _Column:
     """One fixed column of ``windows.parquet``: kind is ``string``, ``int`` or ``float``."""
@@ -219,7 +236,8 @@ class DatasetInfo:
         Protocol name → JSON-ready description, e.g. ``{"description": ..., "n_folds": 5,
         "seed": 0}``. Each gets the column ``fold_<protocol>``; order is kept.
     licence
-        SPDX licence id of the data.
+        SPDX licence id (or expression) of the data, checked and normalised
+        (``cc-by-4.0`` → ``CC-BY-4.0``) by :func:`spdx_licence`.
     authors
         Authors (names of persons or of a group).
     version
@@ -253,6 +271,7 @@ class DatasetInfo:
             value = getattr(self, key)
             if not isinstance(value, str) or not value.strip():
                 raise ConfigError(src, key, "a non-empty string", repr(value))
+        object.__setattr__(self, "licence", spdx_licence(self.licence, src))
         if "/" in self.name or self.name.startswith("."):
             raise ConfigError(src, "name", "a folder name (no '/', not starting with '.')", repr(self.name))
         for key in ("description", "labelling"):

@@ -24,6 +24,7 @@ import yaml
 
 from ofbe_data.core.errors import ConfigError
 from ofbe_data.io.typedconfig import deep_merge
+from ofbe_data.io.yamlio import YamlProblem, read_yaml
 
 DEFAULT_PROFILE = "paper"
 PROFILE_DIR = Path("pipelines") / "profiles"
@@ -35,12 +36,12 @@ merge = deep_merge
 
 def _read(path: Path) -> dict[str, Any]:
     try:
-        with open(path, encoding="utf-8") as fh:
-            data = yaml.safe_load(fh)
+        data = read_yaml(path).data
     except OSError as exc:
         raise ConfigError(path, "<file>", "a readable YAML file", exc.strerror or str(exc)) from None
-    except yaml.YAMLError as exc:
-        raise ConfigError(path, "<file>", "valid YAML", str(exc).splitlines()[0]) from None
+    except YamlProblem as exc:
+        where = f" (line {exc.line})" if exc.line else ""
+        raise ConfigError(path, exc.field, exc.expected, exc.found + where) from None
     if not isinstance(data, dict):
         raise ConfigError(path, "<document>", "a mapping of sections", type(data).__name__)
     return data
@@ -78,7 +79,8 @@ def resolved_params_file(params_file: str | Path = "params.yaml") -> Iterator[st
     fd, tmp = tempfile.mkstemp(prefix="ofbe-params-", suffix=".yaml")
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            yaml.safe_dump(data, fh, sort_keys=False)
+            # already applied: without the key, readers do not look for the profile again
+            yaml.safe_dump({k: v for k, v in data.items() if k != "profile"}, fh, sort_keys=False)
         yield tmp
     finally:
         Path(tmp).unlink(missing_ok=True)

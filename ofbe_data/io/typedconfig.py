@@ -9,6 +9,7 @@ library because the toolkit's records are plain frozen dataclasses and the rules
 from __future__ import annotations
 
 import dataclasses
+import math
 import types
 import typing
 from collections.abc import Mapping
@@ -41,6 +42,9 @@ def _convert(value: Any, tp: Any, source: str | Path, key: str) -> Any:
     if tp is float:
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise ConfigError(source, key, "a number", repr(value))
+        if not math.isfinite(value):
+            # a NaN or infinite threshold silently switches its check off
+            raise ConfigError(source, key, "a finite number", repr(value))
         return float(value)
     if tp is str:
         if not isinstance(value, str):
@@ -116,10 +120,14 @@ def read_section(path: str | Path, section: str, whole_if_missing: bool = False)
         Return the whole document when it has no such key (a file holding only that
         section); otherwise an empty mapping.
 
+    A file with a top-level ``profile`` (params.yaml) is read with that profile's overrides
+    merged, as the pipeline reads it (:func:`ofbe_data.io.pipeline_params.load_params`).
+
     Raises
     ------
     ConfigError
-        Unreadable file, invalid YAML (with its line), or a section that is not a mapping.
+        Unreadable file, invalid YAML (with its line), an unknown profile, or a section that
+        is not a mapping.
     """
     try:
         data = read_yaml(path).data
@@ -128,6 +136,11 @@ def read_section(path: str | Path, section: str, whole_if_missing: bool = False)
                           exc.found) from None
     except OSError as exc:
         raise ConfigError(path, "<file>", "a readable YAML file", exc.strerror or str(exc)) from None
+    if isinstance(data, dict) and isinstance(data.get("profile"), str):
+        # a params file with a profile (params.yaml): its sections as the pipeline sees them
+        from ofbe_data.io.pipeline_params import load_params
+
+        data = load_params(path)
     if isinstance(data, dict) and section in data:
         data = data[section]
     elif not whole_if_missing:

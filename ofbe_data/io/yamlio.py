@@ -8,11 +8,14 @@ keys with their line, and only then ``yaml.safe_load`` the same text.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import yaml
+
+from ofbe_data.core.atomic import file_kind
 
 FieldPath = Sequence[str | int]
 
@@ -40,6 +43,43 @@ def format_field(path: FieldPath) -> str:
     return out or "<document>"
 
 
+MAX_NODES = 200_000
+"""Largest document, in nodes with every alias expanded: a few hundred bytes of nested aliases
+("billion laughs") would otherwise expand to billions of values for whoever walks the data."""
+MAX_DEPTH = 64
+"""Deepest nesting of lists and mappings accepted (manifests and configurations need < 10)."""
+
+
+def _check_size(root: yaml.Node) -> None:
+    """Refuse a document whose alias-expanded size or nesting is beyond the limits.
+
+    Sizes are computed once per distinct node (an alias is the same node object), without
+    recursion, so the check itself is linear in the text.
+    """
+    size: dict[int, int] = {}
+    depth: dict[int, int] = {}
+    stack: list[tuple[yaml.Node, bool]] = [(root, False)]
+    while stack:
+        node, done = stack.pop()
+        key = id(node)
+        if key in size:
+            continue
+        children = ([n for pair in node.value for n in pair] if isinstance(node, yaml.MappingNode)
+                    else list(node.value) if isinstance(node, yaml.SequenceNode) else [])
+        if not done:
+            stack.append((node, True))
+            stack.extend((c, False) for c in children if id(c) not in size)
+            continue
+        size[key] = 1 + sum(size.get(id(c), 1) for c in children)
+        depth[key] = 1 + max((depth.get(id(c), 1) for c in children), default=0)
+        if size[key] > MAX_NODES:
+            raise YamlProblem("<document>", f"at most {MAX_NODES} values once aliases are expanded",
+                              "more (aliases nested to expand exponentially?)", node.start_mark.line + 1)
+        if depth[key] > MAX_DEPTH:
+            raise YamlProblem("<document>", f"nesting at most {MAX_DEPTH} levels deep", "deeper nesting",
+                              node.start_mark.line + 1)
+
+
 def _check_duplicates(node: yaml.Node, path: list[str | int]) -> None:
     if isinstance(node, yaml.MappingNode):
         seen: dict[str, int] = {}
@@ -60,8 +100,18 @@ def _check_duplicates(node: yaml.Node, path: list[str | int]) -> None:
             _check_duplicates(item, [*path, i])
 
 
-_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
-"""libyaml's safe loader when PyYAML was built with it (same safe constructors, ~10× faster)."""
+class _Loader(getattr(yaml, "CSafeLoader", yaml.SafeLoader)):  # type: ignore[misc]
+    """libyaml's safe loader when PyYAML was built with it (same safe constructors, ~10×
+    faster), which also reads ``1e9`` and ``2.5E-3`` as numbers: PyYAML follows YAML 1.1,
+    whose floats need a dot, and would return the string ``"1e9"``."""
+
+
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
+    list("-+0123456789"),
+)
+_LOADER = _Loader
 
 
 class YamlDocument:
@@ -84,6 +134,7 @@ class YamlDocument:
             # one parse: compose (keeps line numbers), check duplicates, then construct
             self._root = loader.get_single_node()
             if self._root is not None:
+                _check_size(self._root)
                 _check_duplicates(self._root, [])
             self.data: Any = loader.construct_document(self._root) if self._root is not None else None
         except yaml.MarkedYAMLError as exc:
@@ -91,6 +142,16 @@ class YamlDocument:
             line = mark.line + 1 if mark is not None else None
             problem = exc.problem or exc.context or "a syntax error"
             raise YamlProblem("<document>", "valid YAML", problem, line) from None
+        except yaml.YAMLError as exc:  # e.g. a control character: a ReaderError has no mark
+            position = getattr(exc, "position", None)
+            line = text[:position].count("\n") + 1 if isinstance(position, int) else None
+            reason = getattr(exc, "reason", None) or str(exc).splitlines()[0]
+            char = getattr(exc, "character", None)
+            found = f"{reason} (character {char!r})" if char is not None else reason
+            raise YamlProblem("<document>", "YAML text", found, line) from None
+        except RecursionError:
+            raise YamlProblem("<document>", f"nesting at most {MAX_DEPTH} levels deep", "deeper nesting",
+                              None) from None
         finally:
             loader.dispose()
 
@@ -127,6 +188,11 @@ def read_yaml(path: str | Path) -> YamlDocument:
     OSError
         When the file cannot be read.
     """
+    kind = file_kind(path)
+    if kind is not None:
+        if kind == "no such file":
+            raise FileNotFoundError(2, "No such file or directory", str(path))
+        raise YamlProblem("<file>", "a regular YAML file", kind, None)
     raw = Path(path).read_bytes()
     try:
         text = raw.decode("utf-8")

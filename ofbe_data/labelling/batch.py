@@ -3,13 +3,14 @@ session's files and each campaign's fit."""
 
 from __future__ import annotations
 
+import tempfile
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from ofbe_data.core.errors import OfbeError
 from ofbe_data.core.parallel import map_progress
-from ofbe_data.io.manifest import MANIFEST_NAME
+from ofbe_data.io.manifest import MANIFEST_NAME, load_manifest
 from ofbe_data.labelling.labels import (
     LabelParams,
     SessionLabels,
@@ -19,7 +20,8 @@ from ofbe_data.labelling.store import fit_campaign, write_campaign_fit, write_se
 
 
 class UsageError(OfbeError):
-    """A path on the command line is neither a session nor a campaign folder."""
+    """A path on the command line is neither a session nor a campaign folder, or the output
+    folder cannot be written."""
 
 
 def expand_sessions(paths: Sequence[str | Path]) -> list[Path]:
@@ -56,11 +58,75 @@ def expand_sessions(paths: Sequence[str | Path]) -> list[Path]:
 
 @dataclass
 class Outcome:
-    """What happened to one session."""
+    """What happened to one session.
+
+    ``removed`` lists label files of an earlier run that this run's failure removed (so that
+    no stale label of the session stays readable as current).
+    """
 
     folder: Path
     labels: SessionLabels | None = None
     error: str = ""
+    removed: list[Path] = field(default_factory=list)
+
+
+def check_output_folder(out_dir: Path) -> None:
+    """Make sure the label products can be written under ``out_dir`` before any work is done.
+
+    Raises
+    ------
+    UsageError
+        ``out_dir`` is an existing file, or it cannot be created or written to.
+    """
+    if out_dir.exists() and not out_dir.is_dir():
+        raise UsageError(f"--out {out_dir}: expected a folder for the labels, found an existing file")
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=out_dir):
+            pass
+    except OSError as exc:
+        raise UsageError(f"--out {out_dir}: expected a folder the labels can be written to, found "
+                         f"{exc.strerror or exc} (choose another --out or fix its permissions)") from None
+
+
+def _session_id(folder: Path) -> tuple[str, str] | None:
+    """(campaign, session) of a session folder's manifest, or None when it cannot be read."""
+    try:
+        m = load_manifest(folder)
+    except (OfbeError, OSError):
+        return None
+    return m.campaign, m.session
+
+
+def _duplicates(folders: Sequence[Path]) -> dict[Path, str]:
+    """Folders whose (campaign, session) id another folder of the batch also has → the error."""
+    first: dict[tuple[str, str], Path] = {}
+    errors: dict[Path, str] = {}
+    for f in folders:
+        sid = _session_id(f)
+        if sid is None:
+            continue
+        if sid in first:
+            msg = (f"session {sid[0]}/{sid[1]} is in two folders of this batch, {first[sid]} and {f}: "
+                   "expected one folder per session id (rename one session in its session.yaml)")
+            errors[first[sid]] = errors[f] = msg
+        else:
+            first[sid] = f
+    return errors
+
+
+def _remove_stale(folder: Path, out_dir: Path) -> list[Path]:
+    """Delete the label files an earlier run wrote for this (now failing) session."""
+    sid = _session_id(folder)
+    if sid is None:
+        return []
+    removed = []
+    for name in (f"{sid[1]}.parquet", f"{sid[1]}.rejected.json"):
+        path = out_dir / sid[0] / name
+        if path.is_file():
+            path.unlink()
+            removed.append(path)
+    return removed
 
 
 def _run_one(args: tuple[Path, LabelParams]) -> Outcome:
@@ -96,10 +162,24 @@ def label_sessions(folders: Sequence[Path], params: LabelParams, out_dir: Path, 
     Returns
     -------
     list of Outcome
-        In the order of ``folders``.
+        In the order of ``folders``. Two folders with the same (campaign, session) id both
+        fail without being labelled; a failed session's label files from an earlier run are
+        removed (``Outcome.removed``).
+
+    Raises
+    ------
+    OSError
+        Writing the products failed (a full disk): every file is written atomically, so
+        what was written is whole, and the caller reports the error.
     """
-    work = [(f, params) for f in folders]
-    outcomes = map_progress(_run_one, work, jobs=jobs, desc="labelling", unit="session", progress=progress)
+    dup = _duplicates(folders)
+    todo = [f for f in folders if f not in dup]
+    done = dict(zip(todo, map_progress(_run_one, [(f, params) for f in todo], jobs=jobs, desc="labelling",
+                                       unit="session", progress=progress), strict=True))
+    outcomes = [done.get(f) or Outcome(f, error=dup[f]) for f in folders]
+    for o in outcomes:
+        if o.error:
+            o.removed = _remove_stale(o.folder, out_dir)
     campaigns: dict[str, list[SessionLabels]] = {}
     for o in outcomes:
         if o.labels is not None:

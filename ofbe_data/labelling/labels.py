@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -37,6 +38,18 @@ from ofbe_data.io.manifest import DeviceSpec, SessionManifest, load_manifest
 from ofbe_data.io.recording import Recording
 from ofbe_data.io.typedconfig import from_plain, read_section
 from ofbe_data.labelling.campaign_fit import CampaignFitParams
+from ofbe_data.labelling.checks import (
+    MAX_LEVEL_TILT_DEG,
+    MAX_MOUNT_ERROR_DEG,
+    MAX_NORM_DEVIATION,
+    WARN_LEVEL_TILT_DEG,
+    clipped_samples,
+    level_tilt_deg,
+    mount_error_deg,
+    norm_problem,
+    rate_problem,
+    rate_step,
+)
 from ofbe_data.labelling.convergence import PAPER_THRESHOLD, PAPER_WINDOW, convergence_index
 from ofbe_data.labelling.multiposition import apparent_biases, fit_poses
 from ofbe_data.labelling.orientation import apparent_bias, nearest_axis, rodrigues_label, roll_pitch
@@ -54,6 +67,10 @@ TOO_SHORT = "too-short"
 NO_SEGMENT = "no-stationary-segment"
 SYNC_FAILED = "sync-failed"
 UNDETERMINED = "multi-position-undetermined"
+IMPLAUSIBLE_NORM = "implausible-norm"
+IMPLAUSIBLE_RATE = "implausible-rate"
+NOT_LEVEL = "not-level"
+MOUNT_MISMATCH = "mount-mismatch"
 REFERENCE_PREFIX = "reference-"
 
 
@@ -82,6 +99,17 @@ class LabelParams:
         Tap synchronisation.
     campaign_fit
         Campaign-level refinement.
+    max_norm_deviation
+        Largest ``|‖mean‖ / g_local − 1|`` of a stationary mean (methods.md §9: 0.3); beyond
+        it the recording is rejected as ``implausible-norm`` with the likely unit mistake.
+    max_level_tilt_deg
+        Largest tilt of a gravity-aligned device from its nearest axis (default: the
+        small-angle threshold 2.866°, where a level label leaks 50 mg); beyond it ``not-level``.
+    warn_level_tilt_deg
+        A smaller tilt above this is kept with a warning.
+    max_mount_error_deg
+        Largest angle between a DUT's measured gravity direction and the one its declared
+        ``reference_to_sensor`` predicts (rotated sessions); beyond it ``mount-mismatch``.
     """
 
     min_samples: int = 4500
@@ -94,6 +122,10 @@ class LabelParams:
     static: StaticParams = field(default_factory=StaticParams)
     sync: SyncParams = field(default_factory=SyncParams)
     campaign_fit: CampaignFitParams = field(default_factory=CampaignFitParams)
+    max_norm_deviation: float = MAX_NORM_DEVIATION
+    max_level_tilt_deg: float = MAX_LEVEL_TILT_DEG
+    warn_level_tilt_deg: float = WARN_LEVEL_TILT_DEG
+    max_mount_error_deg: float = MAX_MOUNT_ERROR_DEG
 
 
 def label_params_from(data: dict[str, Any] | None, source: str | Path = "<parameters>") -> LabelParams:
@@ -109,6 +141,9 @@ def label_params_from(data: dict[str, Any] | None, source: str | Path = "<parame
         raise ConfigError(source, "label.min_samples", "an integer ≥ 2", str(params.min_samples))
     if params.margin_s < 0:
         raise ConfigError(source, "label.margin_s", "a number ≥ 0", str(params.margin_s))
+    for key in ("max_norm_deviation", "max_level_tilt_deg", "warn_level_tilt_deg", "max_mount_error_deg"):
+        if not getattr(params, key) > 0:
+            raise ConfigError(source, f"label.{key}", "a number > 0", str(getattr(params, key)))
     if params.multi_position_model not in ("offset", "scale-offset"):
         raise ConfigError(source, "label.multi_position_model", "offset or scale-offset",
                           repr(params.multi_position_model))
@@ -209,18 +244,26 @@ def _own_segment(rec: Recording, taps: np.ndarray, params: LabelParams) -> tuple
     return _Segment(a, b, static_checked=True), False
 
 
-def _quality(rec: Recording, seg: _Segment, params: LabelParams, min_samples: int | None = None,
+def _quality(rec: Recording, seg: _Segment, params: LabelParams, g: float, min_samples: int | None = None,
              ) -> tuple[str, str] | None:
     """First problem that forbids a label on this segment, as (reason, detail).
 
-    ``min_samples`` defaults to ``params.min_samples`` (the DUT's rule; a reference only
-    needs enough samples for a mean)."""
+    ``g`` is the local gravity (for the plausibility of the mean); ``min_samples`` defaults
+    to ``params.min_samples`` (the DUT's rule; a reference only needs enough samples for a
+    mean)."""
     need = params.min_samples if min_samples is None else min_samples
     d = rec.diagnostics
     skipped = len(d.skipped)
     if d.lines_read and skipped / d.lines_read > params.max_skipped_fraction:
         return GARBLED, (f"{skipped} of {d.lines_read} data lines skipped "
                          f"({skipped / d.lines_read:.2%} > {params.max_skipped_fraction:.2%})")
+    rate = rate_problem(rec.fs_hz, rec.nominal_rate_hz)
+    if rate is not None and rate[1]:
+        return IMPLAUSIBLE_RATE, rate[0]
+    # before the static detector, whose absolute ceiling misfires on readings in the wrong unit
+    norm = norm_problem(_typical_reading(rec.acc), g, params.max_norm_deviation)
+    if norm is not None:
+        return IMPLAUSIBLE_NORM, norm
     if seg.problem:
         return NO_SEGMENT, seg.problem
     sat = int(rec.saturated[seg.start:seg.stop].sum())
@@ -238,7 +281,37 @@ def _quality(rec: Recording, seg: _Segment, params: LabelParams, min_samples: in
                             f"{np.sqrt(check.threshold):.3g} m/s²)")
     if n < need:
         return TOO_SHORT, f"{n} stationary samples, at least {need} needed"
+    x = rec.acc[seg.start:seg.stop]
+    clipped = clipped_samples(x)
+    if clipped is not None:
+        count, k, value = clipped
+        return SATURATED, (f"{count} of {n} samples of the stationary segment sit at the same extreme "
+                           f"{'xyz'[k]} value {value:.5g} m/s², more than the value next to it: clipping at "
+                           "the logger's range? (state range_g, or record with a wider range)")
+    norm = norm_problem(x.mean(axis=0), g, params.max_norm_deviation)
+    if norm is not None:
+        return IMPLAUSIBLE_NORM, norm
     return None
+
+
+def _typical_reading(acc: np.ndarray) -> np.ndarray:
+    """A reading whose norm is the recording's median norm (robust to taps and motion)."""
+    norms = np.sqrt(np.sum(acc * acc, axis=1))
+    return np.array([float(np.median(norms)), 0.0, 0.0]) if norms.size else np.zeros(3)
+
+
+def _rate_warnings(out: SessionLabels, rec_id: str, dev_id: str, rec: Recording) -> None:
+    """Warnings for a sample rate off its nominal value, or changing inside the file."""
+    rate = rate_problem(rec.fs_hz, rec.nominal_rate_hz)
+    if rate is not None and not rate[1]:
+        out.warnings.append(f"{rec_id}/{dev_id}: {rec.path.name}: {rate[0]}")
+    step = rate_step(rec.t)
+    if step is not None:
+        i, before, after = step
+        line = int(rec.line[min(i, rec.n - 1)])
+        out.warnings.append(f"{rec_id}/{dev_id}: {rec.path.name}: the sample rate changes from "
+                            f"{before:.4g} Hz to {after:.4g} Hz around line {line}; fs_hz "
+                            f"({rec.fs_hz:.4g} Hz) is an average")
 
 
 def _base_row(m: SessionManifest, rec_id: str, dev: DeviceSpec, rec: Recording, seg: _Segment,
@@ -297,7 +370,7 @@ def _label_rotated(out: SessionLabels, rec_id: str, recs: dict[str, Recording],
     # the reference's signals, window and checks do not depend on the DUT: once per recording
     ref_sig = tap_signals(ref, params.sync)
     s0, s1, ref_seg = _reference_window(ref, ref_sig.taps, params)
-    ref_bad = _quality(ref, ref_seg, params, min_samples=2)
+    ref_bad = _quality(ref, ref_seg, params, m.g_local, min_samples=2)
     for dev in m.duts:
         rec = recs[dev.id]
         try:
@@ -315,13 +388,21 @@ def _label_rotated(out: SessionLabels, rec_id: str, recs: dict[str, Recording],
         a = int(np.searchsorted(t_ref, s0, side="left"))
         b = int(np.searchsorted(t_ref, s1, side="right"))
         seg = _Segment(a, max(a, b))
-        bad = _quality(rec, seg, params)
+        bad = _quality(rec, seg, params, m.g_local)
         if bad is not None:
             out.rejections.append(Rejection(rec_id, dev.id, *bad))
             continue
         row = _base_row(m, rec_id, dev, rec, seg, out.files, rels[dev.id], params, keep_segments)
         ref_mean = ref.acc[ref_seg.start:ref_seg.stop].mean(axis=0)
         N = np.eye(3) if dev.reference_to_sensor is None else dev.reference_to_sensor
+        error = mount_error_deg(row["_mean"], ref_mean, N)
+        if error > params.max_mount_error_deg:
+            taps = " (the taps' signed signals disagreed with it too)" if sync.warning else ""
+            out.rejections.append(Rejection(rec_id, dev.id, MOUNT_MISMATCH, (
+                f"the DUT's measured gravity direction is {error:.1f}° from the one its declared "
+                f"reference_to_sensor predicts from the reference (at most {params.max_mount_error_deg:g}° "
+                f"expected){taps}: check reference_to_sensor for {dev.id} in the manifest")))
+            continue
         bias, u = rodrigues_label(row["_mean"], ref_mean, N, m.g_local)
         _finish_row(row, bias, u, "reference-rodrigues")
         row.update({"sync_offset_s": sync.offset_s, "sync_drift_ppm": sync.drift_ppm,
@@ -338,7 +419,7 @@ def _label_alone(out: SessionLabels, rec_id: str, recs: dict[str, Recording],
     for dev in m.duts:
         rec = recs[dev.id]
         seg, tapped = _own_segment(rec, tap_signals(rec, params.sync).taps, params)
-        bad = _quality(rec, seg, params)
+        bad = _quality(rec, seg, params, m.g_local)
         if bad is not None:
             out.rejections.append(Rejection(rec_id, dev.id, *bad))
             continue
@@ -348,6 +429,32 @@ def _label_alone(out: SessionLabels, rec_id: str, recs: dict[str, Recording],
                                 f"{int(rec.line[seg.stop - 1])}")
         rows.append(_base_row(m, rec_id, dev, rec, seg, out.files, rels[dev.id], params, keep_segments))
     return rows
+
+
+def _label_level(out: SessionLabels, row: dict[str, Any], params: LabelParams) -> None:
+    """A gravity-aligned row: the level label, unless the device is visibly tilted."""
+    mean = row["_mean"]
+    u = nearest_axis(mean)
+    tilt = level_tilt_deg(mean, u)
+    roll, pitch = roll_pitch(mean)
+    axis = f"{'+' if u.sum() > 0 else '-'}{'xyz'[int(np.argmax(np.abs(u)))]}"
+    what = (f"the measured gravity direction is {tilt:.2f}° from the nearest axis {axis} "
+            f"(roll {roll:.2f}°, pitch {pitch:.2f}°)")
+    if tilt > params.max_level_tilt_deg:
+        leak = 1000.0 * math.sin(math.radians(tilt))
+        out.rejections.append(Rejection(row["recording"], row["device"], NOT_LEVEL, (
+            f"{what}, above label.max_level_tilt_deg = {params.max_level_tilt_deg:.3g}°: a level label "
+            f"would carry about {leak:.0f} mg of gravity in its tangential axes; level the device, or "
+            "label the session as rotated (with a reference) or multi-position")))
+        return
+    if tilt > params.warn_level_tilt_deg:
+        leak = 1000.0 * math.sin(math.radians(tilt))
+        out.warnings.append(f"{row['recording']}/{row['device']}: {what}: a tilt, or a tangential bias "
+                            f"of about {leak:.0f} mg (one window cannot tell which); if it is a tilt, the "
+                            "level label carries that much gravity in its tangential axes")
+    _finish_row(row, apparent_bias(mean, u, row["g_local"]), u, "level")
+    row["roll_deg"], row["pitch_deg"] = roll, pitch  # what was measured, not the axis's 0°
+    out.rows.append(row)
 
 
 def _label_multi_position(out: SessionLabels, rows: list[dict[str, Any]], params: LabelParams) -> None:
@@ -413,15 +520,14 @@ def label_session(folder: str | Path, params: LabelParams = LabelParams(), *,
             recs[dev_id] = read_device_file(path, m.devices[dev_id])
             out.files[rel] = sha256_file(path)
             rels[dev_id] = rel
+            _rate_warnings(out, rec_spec.id, dev_id, recs[dev_id])
         if m.kind == "rotated":
             _label_rotated(out, rec_spec.id, recs, rels, params, keep_segments)
             continue
         rows = _label_alone(out, rec_spec.id, recs, rels, params, keep_segments)
         if m.kind == "gravity-aligned":
             for row in rows:
-                u = nearest_axis(row["_mean"])
-                _finish_row(row, apparent_bias(row["_mean"], u, m.g_local), u, "level")
-                out.rows.append(row)
+                _label_level(out, row, params)
         else:
             out.rows.extend(rows)  # labelled once all poses are in
     if m.kind == "multi-position":

@@ -215,6 +215,9 @@ def _load_raw(name_or_path: str | Path, chain: tuple[str, ...] = ()) -> dict[str
     return deep_merge(_load_raw(base, (*chain, text_source)), data)
 
 
+MAX_STATIONARY_S = 86_400.0
+"""Longest stationary recording the simulator makes, s: a day at 150 Hz is 13 M samples a file."""
+
 def _check(cfg: SimConfig, source: str) -> SimConfig:
     """Semantic checks that types alone do not catch."""
     kinds = ("gravity-aligned", "rotated", "multi-position")
@@ -234,6 +237,9 @@ def _check(cfg: SimConfig, source: str) -> SimConfig:
     lo, hi = cfg.stationary_s
     if not 0 < lo <= hi:
         raise ConfigError(source, "stationary_s", "0 < low <= high", repr(cfg.stationary_s))
+    if hi > MAX_STATIONARY_S:
+        raise ConfigError(source, "stationary_s", f"at most {MAX_STATIONARY_S:g} s (one day) per recording",
+                          repr(cfg.stationary_s))
     modes = {"gravity-aligned": "level", "rotated": "rotated", "multi-position": "multi-position"}
     if cfg.tilts.mode != modes[cfg.kind]:
         raise ConfigError(source, "tilts.mode", f"{modes[cfg.kind]} for kind {cfg.kind}",

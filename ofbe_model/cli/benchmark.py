@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from ofbe_data.core.cli import add_params, add_verbose, fail, quiet_libraries
+from ofbe_data.core.cli import add_params, add_verbose, command, fail, quiet_libraries
 from ofbe_data.core.errors import ConfigError, OfbeError
 from ofbe_data.io.typedconfig import read_section
 from ofbe_model.benchmark.runner import benchmark_params_from, run_protocol
@@ -36,6 +36,7 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+@command(PROG)
 def main(argv: Sequence[str] | None = None) -> int:
     from ofbe_model.benchmark.report import summarise, write_report
 

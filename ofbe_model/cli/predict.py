@@ -10,27 +10,29 @@ import sys
 from collections.abc import Sequence
 from typing import Any
 
-from ofbe_data.core.cli import add_verbose, quiet_libraries
+from ofbe_data.core.cli import EXIT_USAGE, add_verbose, command, fail, quiet_libraries
 from ofbe_data.core.errors import OfbeError
 from ofbe_data.io.gravity import G0 as STANDARD_GRAVITY
 from ofbe_model.estimators.base import EstimatorError
 from ofbe_model.predict import DEFAULT_WINDOW, load_model, predict, targets, window_length_of
 
 PROG = "ofbe-predict"
+MIN_WINDOW = 2
+"""Fewest samples a window may have (a mean and a spread need two)."""
 
 
 def _table(results: Sequence[dict[str, Any]], method: str) -> str:
     g0 = 9.80665e-3
-    head = "".join(f"{h:>9}" for h in ("bias x", "bias y", "bias z")) + "".join(
-        f"{h:>8}" for h in ("std x", "std y", "std z"))
-    lines = [f"{'device':<14}{head}  file   ({method}; mg)"]
+    head = "".join(f"{h:>14}" for h in ("bias x (mg)", "bias y (mg)", "bias z (mg)")) + "".join(
+        f"{h:>13}" for h in ("std x (mg)", "std y (mg)", "std z (mg)"))
+    lines = [f"{'device':<14}{head}  file   ({method}; 1 mg = 9.80665e-3 m/s²)"]
     for r in results:
         if "error" in r:
-            lines.append(f"{r['device']:<14}{'—':>9}{'—':>9}{'—':>9}{'':>24}  {r['file']}: {r['error']}")
+            lines.append(f"{r['device']:<14}{'—':>14}{'—':>14}{'—':>14}{'':>39}  {r['file']}: {r['error']}")
             continue
         b = [v / g0 for v in r["bias_m_s2"]]
         s = ["" if r["std_m_s2"] is None else f"{v / g0:.2f}" for v in (r["std_m_s2"] or [None] * 3)]
-        cells = "".join(f"{v:9.2f}" for v in b) + "".join(f"{v:>8}" for v in s)
+        cells = "".join(f"{v:14.2f}" for v in b) + "".join(f"{v:>13}" for v in s)
         lines.append(f"{r['device']:<14}{cells}  {r['file']}")
     return "\n".join(lines)
 
@@ -51,12 +53,17 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+@command(PROG)
 def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     quiet_libraries(args.verbose)
+    if args.window_length is not None and args.window_length < MIN_WINDOW:
+        return fail(PROG, f"--window-length: expected an integer >= {MIN_WINDOW} (samples), found "
+                          f"{args.window_length}", EXIT_USAGE)
     try:
         model = load_model(args.model)
-        length = window_length_of(model) or args.window_length or DEFAULT_WINDOW
+        fixed = window_length_of(model)
+        length = fixed or (args.window_length if args.window_length is not None else DEFAULT_WINDOW)
         items = targets(args.recordings, args.device, args.g_local)
         results = predict(model, items, length)
     except OfbeError as exc:

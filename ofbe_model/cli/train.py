@@ -10,8 +10,8 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from ofbe_data.core.cli import add_params, add_verbose, fail, quiet_libraries
-from ofbe_data.core.errors import OfbeError
+from ofbe_data.core.cli import add_jobs, add_params, add_verbose, command, fail, quiet_libraries
+from ofbe_data.core.errors import ConfigError, OfbeError
 from ofbe_data.dataset.store import fold_column
 
 PROG = "ofbe-train"
@@ -30,11 +30,13 @@ def _parser() -> argparse.ArgumentParser:
                    help="train every fold with N seeds (train.seed … train.seed + N − 1; "
                         "overrides train.seeds)")
     add_params(p, "train", "the OFBENet parameters and the number of seeds")
+    add_jobs(p, "fits trained at once, each in a single-threaded worker (the models do not depend on it)")
     p.add_argument("--quiet", action="store_true", help="no progress bar and no summary line")
     add_verbose(p)
     return p
 
 
+@command(PROG)
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``ofbe-train``.
 
@@ -51,6 +53,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         params = read_params(args.params, args.max_epochs)
         seeds = read_seed_count(args.params, args.seeds)
+        if args.jobs < 1:
+            raise ConfigError("command line", "--jobs", "an integer >= 1", str(args.jobs))
         fold_column(args.protocol)
     except OfbeError as exc:
         return fail(PROG, str(exc), 2)
@@ -60,7 +64,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     t0 = time.perf_counter()
     try:
         written = train(dataset, args.protocol, args.out, params, args.folds, progress=not args.quiet,
-                        seeds=seeds)
+                        seeds=seeds, jobs=args.jobs)
     except _Usage as exc:
         return fail(PROG, str(exc), 2)
     except (OfbeError, OSError) as exc:

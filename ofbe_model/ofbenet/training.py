@@ -44,9 +44,9 @@ from __future__ import annotations
 import dataclasses
 import io
 import json
-import sys
 import time
 from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -54,11 +54,11 @@ import numpy as np
 import pandas as pd
 from matplotlib import pyplot as plt
 from matplotlib.ticker import MaxNLocator
-from tqdm import tqdm
 
 from ofbe_data.core.atomic import write_bytes_atomic
 from ofbe_data.core.errors import ConfigError
 from ofbe_data.core.figures import new_figure, save_png
+from ofbe_data.core.parallel import map_progress
 from ofbe_data.dataset.reader import load_dataset
 from ofbe_data.dataset.store import fold_column
 from ofbe_data.io.typedconfig import from_plain, read_section
@@ -267,9 +267,41 @@ def _history_from_csv(path: Path) -> dict[str, list[float]]:
     return {c: frame[c].tolist() for c in frame.columns if c != "epoch"}
 
 
+WORKER_ENV = {"TF_NUM_INTRAOP_THREADS": "1", "TF_NUM_INTEROP_THREADS": "1", "TF_CPP_MIN_LOG_LEVEL": "3"}
+"""Every fit runs in a fresh worker process with one TensorFlow thread. OFBENet's small batches
+do not gain from a second thread (a fit on two cores took 18.7 s, on one 16.1 s), so two
+single-threaded workers train two fits at once; and since the thread count is the same
+whatever ``--jobs``, so are the weights."""
+
+_CACHE: dict[str, Any] = {}
+
+
+@dataclass(frozen=True)
+class FitTask:
+    """One fit: a benchmark dataset's fold of a protocol, with one seed (a worker's task)."""
+
+    dataset: str
+    protocol: str
+    name: str
+    fold: int
+    params: OFBENetParams
+    folder: str
+
+
+def _fit_task(task: FitTask) -> tuple[dict[str, Any], dict[str, list[float]]]:
+    """Run one :class:`FitTask` (in a worker; the dataset is loaded once per worker)."""
+    if _CACHE.get("path") != task.dataset:
+        ds = load_dataset(task.dataset)
+        _CACHE.update(path=task.dataset, ds=ds, splits=list(protocol_splits(ds.meta, str(ds.info["kind"]),
+                                                                              task.protocol)))
+    ds = _CACHE["ds"]
+    split = next(s for s in _CACHE["splits"] if s.dataset == task.name and s.fold == task.fold)
+    return train_fold(ds.X, ds.y, ds.meta, split, task.params, Path(task.folder))
+
+
 def train(dataset: str | Path, protocol: str, out: str | Path, params: OFBENetParams,
           folds: Sequence[int] | None = None, progress: bool = True, seeds: int = DEFAULT_SEEDS,
-          ) -> list[Path]:
+          jobs: int = 1) -> list[Path]:
     """Train every (selected) fold of every benchmark dataset of one windowed dataset.
 
     Parameters
@@ -285,10 +317,13 @@ def train(dataset: str | Path, protocol: str, out: str | Path, params: OFBENetPa
     folds
         Fold indices to train (all when None).
     progress
-        A progress bar on stderr over the fits (folds × seeds), with the current fold, seed,
-        epoch and loss; the per-epoch history goes to the history CSVs and ``training.json``.
+        A progress bar on stderr over the fits (folds × seeds), naming the last one finished
+        and its epochs; the per-epoch history goes to the history CSVs and ``training.json``.
     seeds
         Training seeds per fold: ``params.seed`` … ``params.seed + seeds − 1``.
+    jobs
+        Fits trained at once, each in its own single-threaded worker process
+        (:data:`WORKER_ENV`); the models are the same whatever ``jobs``.
 
     Returns
     -------
@@ -318,49 +353,41 @@ def train(dataset: str | Path, protocol: str, out: str | Path, params: OFBENetPa
             raise _Usage(f"--folds: expected folds of {protocol} ({', '.join(map(str, available))}), "
                          f"found {', '.join(map(str, unknown))}")
         splits = [s for s in splits if s.fold in set(folds)]
-    seed_list = [params.seed + i for i in range(seeds)]
     out = Path(out)
+    tasks = []
+    for split in splits:
+        folder = out / dataset_dirname(split.dataset) / protocol
+        folder.mkdir(parents=True, exist_ok=True)
+        tasks += [FitTask(str(dataset), protocol, split.dataset, split.fold,
+                          dataclasses.replace(params, seed=params.seed + i), str(folder))
+                  for i in range(seeds)]
+    results = map_progress(_fit_task, tasks, jobs=jobs, desc=f"{PROG} {protocol}", unit="fit",
+                           progress=progress, worker_env=WORKER_ENV,
+                           postfix=lambda r: f"fold {r[0]['fold']} seed {r[0]['seed']}: "
+                                             f"{r[0]['epochs_run']} epochs")
     written: list[Path] = []
     by_dataset: dict[str, list[Split]] = {}
     for s in splits:
         by_dataset.setdefault(s.dataset, []).append(s)
-    bar = tqdm(total=len(splits) * len(seed_list), desc=f"{PROG} {protocol}", unit="fit", file=sys.stderr,
-               disable=not progress, dynamic_ncols=True)
+    done = {(t.name, t.fold, t.params.seed): r for t, r in zip(tasks, results, strict=True)}
     for name, group in by_dataset.items():
         folder = out / dataset_dirname(name) / protocol
-        folder.mkdir(parents=True, exist_ok=True)
         summary_path = folder / SUMMARY_NAME
         entries = _read_summary(summary_path, name, protocol)
+        entries.update({(f, seed): r[0] for (n, f, seed), r in done.items() if n == name})
+        summary = {"format": SUMMARY_FORMAT, "dataset": name, "dataset_path": str(dataset),
+                   "protocol": protocol, "kind": str(ds.info["kind"]), "devices": list(group[0].devices),
+                   "window_length": int(ds.X.shape[1]), "loss": loss_label(params),
+                   "folds": [entries[k] for k in sorted(entries)]}
+        write_bytes_atomic(summary_path, (json.dumps(summary, indent=2, allow_nan=False) + "\n").encode())
         for split in group:
-            histories: dict[int, dict[str, list[float]]] = {}
-            for seed in seed_list:
-                where = f"{name} fold {split.fold} seed {seed}"
-                bar.set_postfix_str(f"{where}, epoch 0/{params.max_epochs}")
-
-                def on_epoch(epoch: int, logs: dict[str, float], where: str = where) -> None:
-                    loss = logs.get("val_loss", logs.get("loss", float("nan")))
-                    bar.set_postfix_str(f"{where}, epoch {epoch}/{params.max_epochs}, loss {loss:.3g}")
-
-                fold_params = dataclasses.replace(params, seed=seed)
-                entry, histories[seed] = train_fold(ds.X, ds.y, meta, split, fold_params, folder, on_epoch)
-                entries[(split.fold, seed)] = entry
-                summary = {"format": SUMMARY_FORMAT, "dataset": name, "dataset_path": str(dataset),
-                           "protocol": protocol, "kind": str(ds.info["kind"]), "devices": list(split.devices),
-                           "window_length": int(ds.X.shape[1]), "loss": loss_label(params),
-                           "folds": [entries[k] for k in sorted(entries)]}
-                write_bytes_atomic(summary_path,
-                                   (json.dumps(summary, indent=2, allow_nan=False) + "\n").encode())
-                bar.update()
             # the figure shows every seed of the fold on record, those trained earlier included
             on_record = {seed: e for (fold, seed), e in entries.items() if fold == split.fold}
-            for seed, e in on_record.items():
-                if seed not in histories:
-                    histories[seed] = _history_from_csv(folder / e["history"])
+            histories = {seed: (done[(name, split.fold, seed)][1] if (name, split.fold, seed) in done
+                                else _history_from_csv(folder / e["history"]))
+                         for seed, e in on_record.items()}
             plot_history(histories, folder / f"fold-{split.fold}.training.png",
                          f"OFBENet, {split.dataset}, {protocol}, fold {split.fold}", loss_label(params),
                          {seed: e["best_epoch"] for seed, e in on_record.items()})
         written.append(summary_path)
-    bar.close()
     return written
-
-

@@ -596,7 +596,15 @@ def test_saturated_pose_of_a_multi_position_session_is_rejected_alone(tmp_path, 
 
 def test_too_short_recordings_are_rejected_and_the_session_still_written(tmp_path, capsys):
     session = _copy(tmp_path, ROT)
-    labels, rejected = _label_ok(capsys, tmp_path, session, min_samples=5000)
+    out = tmp_path / "out"
+    # nothing labelled at all is not a success, but the session's files are written
+    assert _label_cli(capsys, out, session, min_samples=5000) == (1, (
+        f"ofbe-label: error: no recording was labelled (4 too-short; see the <session>.rejected.json files "
+        f"in {out})\n"))
+    m = load_manifest(session)
+    assert _files(out) == _session_files(m.campaign, m.session)
+    labels = read_labels(out / m.campaign / f"{m.session}.parquet")
+    rejected = json.loads((out / m.campaign / f"{m.session}.rejected.json").read_text())["rejected"]
     assert len(labels) == 0
     assert rejected == [
         _rejection("rec-01", "sparkfun-1", "too-short", "1595 stationary samples, at least 5000 needed"),

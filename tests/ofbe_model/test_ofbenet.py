@@ -6,6 +6,7 @@ import dataclasses
 import inspect
 import json
 import os
+import re
 import subprocess
 import sys
 import zipfile
@@ -308,9 +309,9 @@ def tiny(tmp_path_factory) -> Path:
 def test_ofbe_train_writes_models_curves_and_summary(tiny, tmp_path, capsys) -> None:
     out = tmp_path / "models"
     base = [str(tiny), "--protocol", "grouped", "--out", str(out), "--max-epochs", "2"]
-    assert main([*base, "--folds", "0", "--seeds", "2"]) == 0
+    assert main([*base, "--folds", "0", "--seeds", "2", "--jobs", "2"]) == 0
     err = capsys.readouterr().err
-    assert "c/d1 fold 0 seed 0" in err and "c/d2 fold 0 seed 1" in err and "epoch 1/2" in err
+    assert "ofbe-train grouped: 100%" in err and re.search(r"fold 0 seed [01]: [12] epochs", err)
     assert "Epoch" not in err and "step" not in err  # no Keras per-epoch lines
     assert main([*base, "--folds", "1", "--quiet"]) == 0
     assert capsys.readouterr().err == ""
@@ -400,3 +401,16 @@ def test_train_and_predict_print_no_tensorflow_start_up_lines(tiny, tmp_path) ->
                            "--window-length", str(T), "--verbose"], capture_output=True, text=True, env=env,
                           cwd=ROOT, timeout=300)
     assert loud.returncode == 0 and [m for m in NOISE if m in loud.stderr]
+
+
+def test_the_models_do_not_depend_on_the_number_of_workers(tiny, tmp_path) -> None:
+    import zipfile
+
+    for jobs in ("1", "2"):
+        assert main([str(tiny), "--protocol", "grouped", "--out", str(tmp_path / jobs), "--folds", "0", "1",
+                     "--max-epochs", "2", "--jobs", jobs, "--quiet"]) == 0
+    models = sorted(p.relative_to(tmp_path / "1") for p in (tmp_path / "1").rglob("*.keras"))
+    assert len(models) == 4
+    for rel in models:
+        weights = [zipfile.ZipFile(tmp_path / j / rel).read("model.weights.h5") for j in ("1", "2")]
+        assert weights[0] == weights[1], rel

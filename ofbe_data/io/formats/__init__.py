@@ -57,7 +57,13 @@ def read_device_file(path: str | Path, device: DeviceSpec) -> Recording:
     reader = _READERS.get(device.format)
     if reader is None:
         raise RawFormatError(path, f"format {', '.join(format_names())}", repr(device.format))
-    return reader(Path(path), device)
+    rec = reader(Path(path), device)
+    if not rec.fs_hz > 0:  # NaN: fewer than two samples, or time that never advances
+        skipped = rec.diagnostics.skipped_by_kind
+        why = ", ".join(f"{n} lines skipped ({k})" for k, n in sorted(skipped.items())) or "nothing skipped"
+        raise RawFormatError(path, "at least two samples with increasing time stamps",
+                             f"{rec.n} usable sample(s) ({why}; are all time stamps equal?)")
+    return rec
 
 
 # the format modules register themselves on import

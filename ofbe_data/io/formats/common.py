@@ -23,6 +23,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.csv as pacsv
 
+from ofbe_data.core.atomic import file_kind
 from ofbe_data.core.errors import RawFormatError
 from ofbe_data.io.recording import (
     SKIP_EMPTY,
@@ -436,6 +437,9 @@ def format_utc(stamp: datetime) -> str:
 
 
 def _read_bytes(path: Path) -> bytes:
+    kind = file_kind(path)
+    if kind is not None:
+        raise RawFormatError(path, "a readable data file", kind)
     try:
         return path.read_bytes()
     except FileNotFoundError:

@@ -1,0 +1,188 @@
+"""Plausibility checks that stop a silent wrong label (methods.md §9 and beyond).
+
+Each is a small pure function of a recording's numbers; :mod:`ofbe_data.labelling.labels`
+turns their findings into rejections or warnings:
+
+- :func:`norm_problem`: ‖stationary mean‖ far from g_local, with the likely unit or scale
+  mistake (``implausible-norm``);
+- :func:`level_tilt_deg`: how far a "gravity-aligned" device really is from its nearest axis
+  (``not-level`` above the small-angle threshold);
+- :func:`rate_problem` and :func:`rate_step`: a sample rate no accelerometer logs at (a time
+  unit mistake), one far from the header's nominal rate, or one that changes mid-file;
+- :func:`clipped_samples`: a pile-up of identical extreme values (clipping at the logger's
+  range) even where the file does not state its range;
+- :func:`mount_error_deg`: the angle between a DUT's measured gravity direction and the one the
+  declared mount predicts from the reference (``mount-mismatch``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ofbe_data.core.geometry import dot3, mul3, norm3, unit
+from ofbe_data.io.gravity import G0
+
+MAX_NORM_DEVIATION = 0.3
+"""methods.md §9: a stationary mean more than 30 % away from g_local is implausible."""
+LEVEL_TOLERANCE_MG = 50.0
+"""Tangential gravity leak a level label may carry, mg (the paper's 50 mg contour)."""
+MAX_LEVEL_TILT_DEG = math.degrees(math.asin(LEVEL_TOLERANCE_MG / 1000.0))
+"""The small-angle threshold (2.866°): beyond it a level label leaks more than 50 mg."""
+WARN_LEVEL_TILT_DEG = 2.0
+"""An apparent tilt above this (≈ 35 mg) is worth a warning even when the label is kept. One
+window cannot tell a tilt from a tangential bias (both turn the mean away from the axis), and
+ADXL345 offsets of tens of mg are common, so smaller angles are not flagged."""
+RATE_RANGE_HZ = (0.5, 20_000.0)
+"""Sample rates outside this range are taken for a time-unit mistake (no MEMS logger is there)."""
+MAX_RATE_DEVIATION = 0.5
+"""A measured rate more than 50 % from the header's nominal one rejects the recording."""
+WARN_RATE_DEVIATION = 0.05
+"""More than 5 % from the nominal rate (crystal error is < 0.01 %) is worth a warning."""
+RATE_STEP_FACTOR = 1.3
+"""Blocks of the file whose median sample step differs from the file's by this factor (either
+way) show a rate change mid-file."""
+MAX_MOUNT_ERROR_DEG = 10.0
+"""Mount misalignment is a degree or two; ten means the declared reference_to_sensor is wrong."""
+
+#: Ratios ‖mean‖ / g_local that name a unit or scale mistake, with what it would be.
+_KNOWN_MISTAKES: tuple[tuple[float, str], ...] = (
+    (1.0 / G0, "values in g declared as m/s2"),
+    (G0, "values in m/s² declared as g"),
+    (1000.0, "values in mg declared as g"),
+    (1000.0 / G0, "values in mg declared as m/s2"),
+    (1.0 / 1000.0, "values in g declared as mg"),
+    (G0 / 1000.0, "values in m/s² declared as mg"),
+)
+
+
+def likely_mistake(ratio: float) -> str:
+    """The unit or scale mistake that best explains ``‖mean‖ / g_local = ratio``.
+
+    A known unit confusion within 10 %, else a power-of-two factor (raw counts read with the
+    wrong ``lsb_per_g``), else a generic description.
+    """
+    if not ratio > 0 or not math.isfinite(ratio):
+        return "no signal (all readings zero or not finite)"
+    for factor, what in _KNOWN_MISTAKES:
+        if abs(math.log(ratio / factor)) < math.log(1.1):
+            return what
+    for scale, declared in ((G0, "m/s2"), (1.0, "g")):
+        k = round(math.log2(ratio * scale))
+        if k >= 6 and abs(math.log2(ratio * scale) - k) < 0.1:
+            return (f"raw counts declared as {declared} (about {2 ** k} counts per g: declare counts and "
+                    "lsb_per_g)")
+    k = round(math.log2(ratio))
+    if k != 0 and abs(math.log2(ratio) - k) < 0.1:
+        return (f"counts scaled with the wrong lsb_per_g (off by 2^{k} = {2.0 ** k:g}: check the "
+                "range and resolution of the logger)")
+    return "a unit or scale mistake, or a sensor that is not at rest"
+
+
+def norm_problem(mean: np.ndarray, g: float, max_deviation: float = MAX_NORM_DEVIATION) -> str | None:
+    """Why a stationary mean cannot be a resting accelerometer's reading, or None.
+
+    Parameters
+    ----------
+    mean
+        (3,) mean specific force over the stationary segment, m/s².
+    g
+        Local gravity, m/s².
+    max_deviation
+        Largest accepted ``|‖mean‖ / g − 1|``.
+    """
+    norm = float(norm3(np.asarray(mean, dtype=np.float64)))
+    ratio = norm / g
+    if abs(ratio - 1.0) <= max_deviation:
+        return None
+    return (f"‖mean‖ = {norm:.4g} m/s² is {ratio:.3g} × g_local ({g:.4f} m/s²), more than "
+            f"{max_deviation:.0%} away: likely {likely_mistake(ratio)}")
+
+
+def level_tilt_deg(mean: np.ndarray, axis: np.ndarray) -> float:
+    """Angle between the measured gravity direction and the nearest signed axis, degrees."""
+    c = float(np.clip(abs(dot3(unit(mean), np.asarray(axis, dtype=np.float64))), -1.0, 1.0))
+    return math.degrees(math.acos(c))
+
+
+def rate_problem(fs_hz: float, nominal_hz: float | None) -> tuple[str, bool] | None:
+    """A measured sample rate that is wrong, as (description, reject?), or None.
+
+    Rejected: outside :data:`RATE_RANGE_HZ` (a time-unit mistake), or more than
+    :data:`MAX_RATE_DEVIATION` from the header's nominal rate. Warned: more than
+    :data:`WARN_RATE_DEVIATION` from it.
+    """
+    lo, hi = RATE_RANGE_HZ
+    if not lo <= fs_hz <= hi:
+        hint = "time in s declared as ms or µs?" if fs_hz > hi else "time in ms or µs declared as s?"
+        return (f"measured sample rate {fs_hz:.4g} Hz is outside {lo:g}–{hi:g} Hz ({hint})", True)
+    if nominal_hz:
+        dev = fs_hz / nominal_hz - 1.0
+        text = f"measured sample rate {fs_hz:.4g} Hz is {dev:+.1%} from the nominal {nominal_hz:g} Hz"
+        if abs(dev) > MAX_RATE_DEVIATION:
+            return text + " (wrong time unit, or the wrong device's file?)", True
+        if abs(dev) > WARN_RATE_DEVIATION:
+            return text, False
+    return None
+
+
+def rate_step(t: np.ndarray, block: int = 500) -> tuple[int, float, float] | None:
+    """A change of sample rate inside a recording, as (first sample of the changed block, rate
+    before, rate after) in Hz, or None.
+
+    The file is cut into blocks of ``block`` samples; a block whose median step differs from
+    the whole file's median step by :data:`RATE_STEP_FACTOR` or more marks the change (gaps
+    from lost samples are single long steps and do not move a block's median).
+    """
+    t = np.asarray(t, dtype=np.float64)
+    if t.size < 2 * block:
+        return None
+    steps = np.diff(t)
+    overall = float(np.median(steps))
+    if not overall > 0:
+        return None
+    n = steps.size // block
+    medians = np.median(steps[: n * block].reshape(n, block), axis=1)
+    ratio = medians / overall
+    off = np.flatnonzero((ratio > RATE_STEP_FACTOR) | (ratio < 1.0 / RATE_STEP_FACTOR))
+    if off.size == 0:
+        return None
+    k = int(off[0])
+    before = float(np.median(medians[:k])) if k else overall
+    return k * block, 1.0 / before, 1.0 / float(medians[k])
+
+
+def clipped_samples(x: np.ndarray, min_count: int = 5, min_fraction: float = 0.01,
+                    ) -> tuple[int, int, float] | None:
+    """Samples piled up at an axis' extreme value (clipping), as (count, axis, value), or None.
+
+    A clipped axis reads its limit again and again: the extreme value then occurs more often
+    than the value next to it. Noise instead thins out towards its extremes, so its largest
+    value is rarer than the next one, however coarse the quantisation.
+
+    Parameters
+    ----------
+    x
+        (N, 3) readings of the stationary segment.
+    min_count, min_fraction
+        The extreme must occur at least this often (and in this fraction of the samples).
+    """
+    x = np.asarray(x, dtype=np.float64)
+    n = x.shape[0]
+    for k in range(x.shape[1]):
+        values, counts = np.unique(x[:, k], return_counts=True)
+        if values.size < 2:
+            continue
+        for end, neighbour in ((-1, -2), (0, 1)):
+            c = int(counts[end])
+            if c >= max(min_count, min_fraction * n) and c > counts[neighbour]:
+                return c, k, float(values[end])
+    return None
+
+
+def mount_error_deg(dut_mean: np.ndarray, ref_mean: np.ndarray, reference_to_sensor: np.ndarray) -> float:
+    """Angle between a DUT's measured gravity direction and ``N·û_ref``, degrees."""
+    predicted = mul3(np.asarray(reference_to_sensor, dtype=np.float64), unit(ref_mean))
+    c = float(np.clip(dot3(unit(dut_mean), unit(predicted)), -1.0, 1.0))
+    return math.degrees(math.acos(c))

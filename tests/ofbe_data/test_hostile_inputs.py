@@ -1,0 +1,462 @@
+"""Bad and hostile inputs from the bad-input campaign (issue 16): each gives one clear line or a
+recorded rejection, the documented exit status, no traceback, no hang, nothing partial or stale.
+
+The hostile files are built here. Commands run in subprocesses where a hang or a traceback is
+what could go wrong (with a timeout), in-process otherwise.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import yaml
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from ofbe_data.cli.label import main as label_main
+from ofbe_data.cli.simulate import main as simulate_main
+from ofbe_data.core.errors import ConfigError, ManifestError, OfbeError
+from ofbe_data.io.manifest import load_manifest
+from ofbe_data.io.typedconfig import read_section
+from ofbe_data.io.yamlio import MAX_DEPTH, YamlDocument, YamlProblem
+from ofbe_data.labelling.labels import label_params_from
+
+ROOT = Path(__file__).resolve().parents[2]
+EXAMPLES = ROOT / "raw" / "examples"
+GA = EXAMPLES / "tiny-gravity-aligned"
+
+BOMB = ('a: &a ["x", "x", "x", "x", "x", "x", "x", "x", "x"]\n'
+        + "".join(f"{c}: &{c} [*{p}, *{p}, *{p}, *{p}, *{p}, *{p}, *{p}, *{p}, *{p}]\n"
+                  for p, c in zip("abcdefgh", "bcdefghi", strict=True)))
+
+
+def _run(args: list[str], timeout: float = 60, cwd: Path = ROOT) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", *args], capture_output=True, text=True, timeout=timeout,
+                          cwd=cwd)
+
+
+def _one_line(err: str) -> str:
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "Traceback" not in err, err
+    return lines[0]
+
+
+def _copy_session(dest: Path, session: str = "ga-pc001") -> Path:
+    shutil.copytree(GA / session, dest)
+    return dest
+
+
+# ----------------------------------------------------------------------------- hangs
+
+
+@pytest.mark.parametrize("kind", ["manifest", "simulator config"])
+def test_a_billion_laughs_document_is_refused_fast(tmp_path: Path, kind: str) -> None:
+    if kind == "manifest":
+        session = _copy_session(tmp_path / "s")
+        (session / "session.yaml").write_text(BOMB)
+        t0 = time.monotonic()
+        done = _run(["ofbe_data.cli.label", str(session), "--out", str(tmp_path / "labels"), "--quiet"],
+                    timeout=5)
+        assert time.monotonic() - t0 < 5
+        line = _one_line(done.stderr)
+        assert done.returncode == 1 and "session.yaml" in line
+    else:
+        cfg = tmp_path / "bomb.yaml"
+        cfg.write_text(BOMB)
+        done = _run(["ofbe_data.cli.simulate", str(cfg), "--out", str(tmp_path / "camp")], timeout=5)
+        line = _one_line(done.stderr)
+        assert done.returncode == 2 and "bomb.yaml" in line
+        assert not (tmp_path / "camp").exists()
+    assert "at most 200000 values once aliases are expanded" in line
+
+
+def test_a_fifo_named_as_a_device_file_is_refused_not_waited_on(tmp_path: Path) -> None:
+    session = _copy_session(tmp_path / "s")
+    target = session / "rec-01" / "sparkfun-1.csv"
+    target.unlink()
+    os.mkfifo(target)
+    done = _run(["ofbe_data.cli.label", str(session), "--out", str(tmp_path / "labels"),
+                 "--min-samples", "1000", "--quiet"], timeout=5)
+    line = _one_line(done.stderr)
+    assert done.returncode == 1
+    assert f"{target}: expected a readable data file, found a FIFO (named pipe)" in line
+
+
+def test_deep_nesting_is_refused(tmp_path: Path) -> None:
+    with pytest.raises(YamlProblem, match=f"nesting at most {MAX_DEPTH} levels deep"):
+        YamlDocument("a: " + "[" * 20_000 + "]" * 20_000 + "\n")
+    session = _copy_session(tmp_path / "s")
+    (session / "session.yaml").write_text("a: " + "[" * 20_000 + "]" * 20_000 + "\n")
+    with pytest.raises(ManifestError, match=f"nesting at most {MAX_DEPTH} levels deep"):
+        load_manifest(session)
+
+
+# ----------------------------------------------------------------------------- parameters
+
+
+def test_yaml_exponent_numbers_are_numbers() -> None:
+    assert YamlDocument("a: 1e9\nb: -2.5E-3\nc: 1.0e+3\nd: e9\n").data == {
+        "a": 1e9, "b": -0.0025, "c": 1000.0, "d": "e9"}
+
+
+@pytest.mark.parametrize("text, key", [
+    ("label:\n  max_skipped_fraction: .nan\n", "label.max_skipped_fraction"),
+    ("label:\n  static:\n    max_std_mps2: .inf\n", "label.static.max_std_mps2"),
+])
+def test_non_finite_parameters_are_errors(tmp_path: Path, text: str, key: str) -> None:
+    path = tmp_path / "p.yaml"
+    path.write_text(text)
+    data = read_section(path, "label")
+    with pytest.raises(ConfigError, match=r"expected a finite number, found (nan|inf)"):
+        label_params_from(data, path)
+
+
+def test_non_finite_simulator_config_is_an_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    cfg = tmp_path / "nan.yaml"
+    cfg.write_text("profile: tiny-rotated\ndut_model:\n  noise_mg: [.nan, 3, 4.5]\n")
+    assert simulate_main([str(cfg), "--out", str(tmp_path / "c"), "--quiet"]) == 2
+    assert _one_line(capsys.readouterr().err) == (
+        f"ofbe-simulate: error: {cfg}: dut_model.noise_mg[0]: expected a finite number, found nan")
+    assert not (tmp_path / "c").exists()
+
+
+def test_a_huge_recording_length_is_refused_before_allocating(tmp_path: Path,
+                                                              capsys: pytest.CaptureFixture[str]) -> None:
+    cfg = tmp_path / "big.yaml"
+    cfg.write_text("profile: tiny-rotated\nstationary_s: [1.0e+9, 1.0e+9]\n")
+    assert simulate_main([str(cfg), "--out", str(tmp_path / "c"), "--quiet"]) == 2
+    assert "stationary_s: expected at most 86400 s (one day) per recording" in capsys.readouterr().err
+
+
+def test_params_files_resolve_their_profile(tmp_path: Path) -> None:
+    (tmp_path / "pipelines" / "profiles").mkdir(parents=True)
+    shutil.copy(ROOT / "pipelines" / "profiles" / "tiny.yaml", tmp_path / "pipelines" / "profiles")
+    text = (ROOT / "params.yaml").read_text().replace("\nprofile: paper", "\nprofile: tiny", 1)
+    (tmp_path / "params.yaml").write_text(text)
+    tiny = yaml.safe_load((ROOT / "pipelines" / "profiles" / "tiny.yaml").read_text())
+    assert read_section(tmp_path / "params.yaml", "train")["max_epochs"] == tiny["train"]["max_epochs"]
+    (tmp_path / "params.yaml").write_text(text.replace("\nprofile: tiny", "\nprofile: nano", 1))
+    with pytest.raises(ConfigError, match="profile: expected paper or one of tiny, found 'nano'"):
+        read_section(tmp_path / "params.yaml", "train")
+
+
+# ----------------------------------------------------------------------------- ofbe-label
+
+
+def test_duplicate_session_ids_are_an_error_naming_both_folders(tmp_path: Path,
+                                                               capsys: pytest.CaptureFixture[str]) -> None:
+    a = _copy_session(tmp_path / "a")
+    b = _copy_session(tmp_path / "b")
+    out = tmp_path / "labels"
+    assert label_main([str(a), str(b), "--out", str(out), "--min-samples", "1000", "--quiet"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 2
+    for line in err:
+        assert f"session tiny-gravity-aligned/ga-pc001 is in two folders of this batch, {a} and {b}" in line
+    assert not (out / "tiny-gravity-aligned" / "ga-pc001.parquet").exists()
+
+
+def test_a_failing_session_leaves_no_stale_labels(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    session = _copy_session(tmp_path / "s")
+    out = tmp_path / "labels"
+    assert label_main([str(session), "--out", str(out), "--min-samples", "1000", "--quiet"]) == 0
+    old = out / "tiny-gravity-aligned" / "ga-pc001.parquet"
+    assert old.is_file()
+    (session / "rec-01" / "sparkfun-1.csv").write_bytes(b"\x00\x01garbage\n")
+    assert label_main([str(session), "--out", str(out), "--min-samples", "1000", "--quiet"]) == 1
+    err = capsys.readouterr().err
+    assert not old.exists() and not old.with_name("ga-pc001.rejected.json").exists()
+    assert f"removed its labels of an earlier run: {old}" in err
+
+
+def test_all_time_stamps_equal_is_one_clear_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    session = _copy_session(tmp_path / "s")
+    f = session / "rec-01" / "sparkfun-1.csv"
+    f.write_text(re.sub(r"^\d{6,},", "4137731288,", f.read_text(), flags=re.M))
+    assert label_main([str(session), "--out", str(tmp_path / "o"), "--min-samples", "1000", "--quiet"]) == 1
+    line = _one_line(capsys.readouterr().err)
+    assert f"{f}: expected at least two samples with increasing time stamps, found 1 usable sample(s)" in line
+    assert "are all time stamps equal?" in line
+
+
+@pytest.mark.parametrize("make, expected", [
+    (lambda p: p.write_text("x"), "expected a folder for the labels, found an existing file"),
+    (lambda p: (p.mkdir(), p.chmod(0o500)), "expected a folder the labels can be written to, found"),
+])
+def test_an_unusable_out_folder_is_a_usage_error(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                 make, expected: str) -> None:
+    if expected.endswith("found") and os.geteuid() == 0:
+        pytest.skip("root writes into read-only folders")
+    out = tmp_path / "out"
+    make(out)
+    assert label_main([str(GA / "ga-pc001"), "--out", str(out), "--quiet"]) == 2
+    assert expected in _one_line(capsys.readouterr().err)
+
+
+def test_labelling_nothing_is_not_a_success(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "labels"
+    assert label_main([str(GA / "ga-pc001"), "--out", str(out), "--min-samples", "10000000"]) == 1
+    err = capsys.readouterr().err
+    assert "ofbe-label: error: no recording was labelled (2 too-short; see the <session>.rejected.json" in err
+
+
+def test_ctrl_c_prints_one_line(tmp_path: Path) -> None:
+    proc = subprocess.Popen([sys.executable, "-m", "ofbe_data.cli.simulate", "rotated", "--out",
+                             str(tmp_path / "camp"), "--jobs", "2"], stderr=subprocess.PIPE, text=True,
+                            cwd=ROOT)
+    deadline = time.monotonic() + 60  # interrupt once the campaign is being written
+    while not any(tmp_path.iterdir()) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    time.sleep(0.5)
+    proc.send_signal(2)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130
+    last = [ln for ln in err.replace("\r", "\n").splitlines() if ln.strip()][-1]
+    assert last.startswith("ofbe-simulate: interrupted") and "Traceback" not in err
+    assert not (tmp_path / "camp").exists()
+
+
+# ----------------------------------------------------------------------------- property
+
+
+_scalars = st.one_of(st.none(), st.booleans(), st.integers(-10**6, 10**6), st.floats(allow_nan=True),
+                     st.text(max_size=12))
+_yaml_values = st.recursive(_scalars, lambda inner: st.one_of(
+    st.lists(inner, max_size=4), st.dictionaries(st.text(max_size=8), inner, max_size=4)), max_leaves=30)
+_manifest_like = st.fixed_dictionaries({}, optional={
+    "format": st.one_of(st.just("ofbe-session/1"), _scalars),
+    "campaign": _yaml_values, "session": _yaml_values, "kind": st.sampled_from(
+        ["gravity-aligned", "rotated", "multi-position", "other"]),
+    "power_cycle": _yaml_values, "site": _yaml_values, "devices": _yaml_values, "recordings": _yaml_values})
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(doc=st.one_of(_manifest_like, _yaml_values), raw=st.binary(max_size=200))
+def test_random_manifests_give_only_ofbe_errors(tmp_path: Path, doc: object, raw: bytes) -> None:
+    for text in (yaml.safe_dump(doc, allow_unicode=True), raw.decode("utf-8", "replace")):
+        folder = tmp_path / "s"
+        folder.mkdir(exist_ok=True)
+        (folder / "session.yaml").write_text(text, encoding="utf-8")
+        t0 = time.monotonic()
+        try:
+            load_manifest(folder)
+        except OfbeError:
+            pass
+        assert time.monotonic() - t0 < 2.0
+
+
+# ----------------------------------------------------------------------------- ofbe-dataset
+
+
+def test_export_refuses_a_licence_that_is_not_spdx(tmp_path: Path,
+                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    from ofbe_data.cli.dataset import main as dataset_main
+    from ofbe_data.dataset.store import spdx_licence
+
+    assert spdx_licence("cc-by-4.0") == "CC-BY-4.0" and spdx_licence("MIT OR CC0-1.0") == "MIT OR CC0-1.0"
+    built = _built_dataset(tmp_path)
+    out = tmp_path / "exported"
+    assert dataset_main(["export", str(built), "--out", str(out), "--licence", "not a licence"]) == 1
+    line = _one_line(capsys.readouterr().err)
+    assert "licence: expected an SPDX licence id such as CC-BY-4.0" in line and "'not a licence'" in line
+    assert not out.exists()
+    assert dataset_main(["verify", str(built)]) == 0
+    said = capsys.readouterr().out
+    assert re.search(r"OK — ga \(ofbe-windows/1\): \d+ windows of 300 samples from \d+ recordings of 2 "
+                     r"devices; protocols paper-gravity, grouped; 5 files match their SHA-256 sums", said)
+    assert "{" not in said
+
+
+def _built_dataset(tmp_path: Path) -> Path:
+    from ofbe_data.dataset.build import DatasetParams, build_dataset
+    from ofbe_data.labelling.batch import expand_sessions, label_sessions
+    from ofbe_data.labelling.labels import LabelParams
+
+    labels = tmp_path / "labels"
+    label_sessions(expand_sessions([GA]), LabelParams(min_samples=1000), labels, progress=False)
+    params = DatasetParams(window_length=300, stride=300, n_folds=3)
+    return build_dataset(labels / "tiny-gravity-aligned", GA, tmp_path / "ds" / "ga", params, name="ga",
+                         progress=False).path
+
+
+# ----------------------------------------------------------------------------- silent wrong labels
+
+ROT = EXAMPLES / "tiny-rotated"
+FERRARIS = EXAMPLES / "imucal-ferraris" / "ferraris-pc001"
+
+
+def _logger_rows(path: Path) -> tuple[list[str], list[list[int]]]:
+    """An ofbe-logger file as (header and boot lines, data rows [t_us, ax, ay, az])."""
+    head, rows = [], []
+    for line in path.read_text().splitlines():
+        parts = line.split(",")
+        if len(parts) == 4 and all(p.strip().lstrip("-").isdigit() for p in parts):
+            rows.append([int(p) for p in parts])
+        else:
+            head.append(line)
+    return head, rows
+
+
+def _write_logger(path: Path, head: list[str], rows: list[list[int]]) -> None:
+    path.write_text("\n".join(head + [",".join(map(str, r)) for r in rows]) + "\n")
+
+
+def _label(session: Path, tmp_path: Path, min_samples: int = 1000):
+    from ofbe_data.labelling.labels import LabelParams, label_session
+
+    return label_session(session, LabelParams(min_samples=min_samples))
+
+
+def _tilt(session: Path, device: str, deg: float) -> None:
+    import numpy as np
+
+    f = session / "rec-01" / f"{device}.csv"
+    head, rows = _logger_rows(f)
+    c, s = np.cos(np.radians(deg)), np.sin(np.radians(deg))
+    rot = np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
+    acc = np.array([r[1:] for r in rows], dtype=float) @ rot.T
+    _write_logger(f, head, [[r[0], *map(int, np.rint(a))] for r, a in zip(rows, acc, strict=True)])
+
+
+def test_a_tilted_gravity_aligned_device_is_rejected_as_not_level(tmp_path: Path) -> None:
+    session = _copy_session(tmp_path / "s")
+    _tilt(session, "sparkfun-1", 5.8)
+    labels = _label(session, tmp_path)
+    (rej,) = [r for r in labels.rejections if r.device == "sparkfun-1"]
+    assert rej.reason == "not-level"
+    assert re.match(r"the measured gravity direction is [4-7]\.\d\d° from the nearest axis \+z "
+                    r"\(roll -?\d\.\d\d°, pitch -?\d\.\d\d°\), above label\.max_level_tilt_deg = 2\.87°: "
+                    r"a level label would carry about \d+ mg", rej.detail), rej.detail
+    assert [r["device"] for r in labels.rows] == ["sparkfun-2"]
+
+
+def test_a_slight_tilt_is_kept_with_a_warning_and_its_measured_roll(tmp_path: Path) -> None:
+    session = _copy_session(tmp_path / "s")
+    (before,) = [r for r in _label(session, tmp_path).rows if r["device"] == "sparkfun-1"]
+    _tilt(session, "sparkfun-1", -1.8)  # its roll was +0.6°: now about 2.4°, between warning and limit
+    labels = _label(session, tmp_path)
+    (row,) = [r for r in labels.rows if r["device"] == "sparkfun-1"]
+    assert abs(row["roll_deg"] - before["roll_deg"] - 1.8) < 0.1 and row["label_method"] == "level"
+    assert row["roll_deg"] != 0.0 and row["gravity_z"] == 1.0  # measured angles, the axis' label
+    pattern = (r"rec-01/sparkfun-1: the measured gravity direction is 2\.\d\d° from the nearest axis \+z "
+               r".*: a tilt, or a tangential bias of about \d+ mg \(one window cannot tell which\)")
+    assert any(re.match(pattern, w) for w in labels.warnings), labels.warnings
+
+
+def _ferraris_in_g(tmp_path: Path, acc_unit: str, time_unit: str = "s") -> Path:
+    import pandas as pd
+
+    session = tmp_path / "ferraris"
+    shutil.copytree(FERRARIS, session)
+    for f in session.glob("rec-*/imu.csv"):
+        frame = pd.read_csv(f)
+        for c in ("acc_x", "acc_y", "acc_z"):
+            frame[c] = frame[c] / 2048.0
+        frame.to_csv(f, index=False, float_format="%.6f")
+    text = (session / "session.yaml").read_text()
+    text = text.replace("acc_unit: counts\n    lsb_per_g: 2048.0\n", f"acc_unit: {acc_unit}\n")
+    text = text.replace("time_unit: s\n", f"time_unit: {time_unit}\n")
+    (session / "session.yaml").write_text(text)
+    return session
+
+
+def test_data_in_g_declared_as_m_s2_is_an_implausible_norm(tmp_path: Path) -> None:
+    labels = _label(_ferraris_in_g(tmp_path, "m/s2"), tmp_path, min_samples=500)
+    assert labels.rows == [] and len(labels.rejections) == 6
+    for rej in labels.rejections:
+        assert rej.reason == "implausible-norm"
+        assert re.search(r"‖mean‖ = \d\.\d+ m/s² is 0\.\d+ × g_local \(9\.8100 m/s²\), more than 30% "
+                         r"away: likely values in g declared as m/s2$", rej.detail), rej.detail
+
+
+def test_counts_declared_as_m_s2_name_the_counts(tmp_path: Path) -> None:
+    session = tmp_path / "ferraris"
+    shutil.copytree(FERRARIS, session)
+    text = (session / "session.yaml").read_text().replace("acc_unit: counts\n    lsb_per_g: 2048.0\n",
+                                                          "acc_unit: m/s2\n")
+    (session / "session.yaml").write_text(text)
+    labels = _label(session, tmp_path, min_samples=500)
+    assert {r.reason for r in labels.rejections} == {"implausible-norm"}
+    assert "likely raw counts declared as m/s2 (about 2048 counts per g" in labels.rejections[0].detail
+
+
+def test_time_in_s_declared_as_ms_is_an_implausible_rate(tmp_path: Path) -> None:
+    labels = _label(_ferraris_in_g(tmp_path, "g", time_unit="ms"), tmp_path, min_samples=500)
+    assert {r.reason for r in labels.rejections} == {"implausible-rate"} and labels.rows == []
+    detail = labels.rejections[0].detail
+    assert re.match(r"measured sample rate 2\.0\d+e\+05 Hz is outside 0\.5–20000 Hz "
+                    r"\(time in s declared as ms or µs\?\)", detail), detail
+
+
+def test_a_rate_that_halves_mid_file_is_flagged(tmp_path: Path) -> None:
+    session = _copy_session(tmp_path / "s")
+    f = session / "rec-01" / "sparkfun-1.csv"
+    head, rows = _logger_rows(f)
+    half = len(rows) // 2
+    _write_logger(f, head, rows[:half] + rows[half::2])
+    labels = _label(session, tmp_path)
+    pattern = (r"rec-01/sparkfun-1: sparkfun-1\.csv: the sample rate changes from 1[45]\d\.?\d* Hz "
+               r"to 7\d\.?\d* Hz around line \d+; fs_hz")
+    assert any(re.search(pattern, w) for w in labels.warnings), labels.warnings
+
+
+def test_values_clipped_at_the_loggers_range_are_saturation(tmp_path: Path) -> None:
+    session = _copy_session(tmp_path / "s")
+    f = session / "rec-01" / "sparkfun-1.csv"
+    head, rows = _logger_rows(f)
+    _write_logger(f, head, [[t, ax, ay, min(az, 256)] for t, ax, ay, az in rows])
+    labels = _label(session, tmp_path)
+    (rej,) = [r for r in labels.rejections if r.device == "sparkfun-1"]
+    assert rej.reason == "saturated"
+    assert re.match(r"\d+ of \d+ samples of the stationary segment sit at the same extreme z value "
+                    r"9\.80\d* m/s², more than the value next to it: clipping at the logger's range\?",
+                    rej.detail), rej.detail
+
+
+def test_unclipped_quantised_noise_is_not_saturation() -> None:
+    import numpy as np
+
+    from ofbe_data.labelling.checks import clipped_samples
+
+    rng = np.random.default_rng(3)
+    for sigma in (0.3, 0.6, 1.0, 3.0):  # noise in LSB: the extremes thin out
+        x = np.rint(rng.normal([3.0, -2.0, 260.0], sigma, (5000, 3)))
+        assert clipped_samples(x) is None, sigma
+    x = np.rint(rng.normal([3.0, -2.0, 260.0], 2.0, (5000, 3)))
+    x[:, 2] = np.minimum(x[:, 2], 259.0)
+    assert clipped_samples(x)[1:] == (2, 259.0)
+
+
+def test_a_mount_that_contradicts_the_reference_is_a_mount_mismatch(tmp_path: Path) -> None:
+    session = tmp_path / "rot"
+    shutil.copytree(ROT / "rot-pc001", session)
+    text = (session / "session.yaml").read_text()
+    # sparkfun-1 really sits as declared (identity); declare it turned 90° about z
+    text = text.replace("    reference_to_sensor:\n    - [1, 0, 0]\n    - [0, 1, 0]\n    - [0, 0, 1]\n",
+                        "    reference_to_sensor:\n    - [0, 1, 0]\n    - [-1, 0, 0]\n    - [0, 0, 1]\n", 1)
+    (session / "session.yaml").write_text(text)
+    labels = _label(session, tmp_path)
+    mine = [r for r in labels.rejections if r.device == "sparkfun-1"]
+    assert [r.reason for r in mine] == ["mount-mismatch", "mount-mismatch"]
+    assert re.match(r"the DUT's measured gravity direction is \d+\.\d° from the one its declared "
+                    r"reference_to_sensor predicts from the reference \(at most 10° expected\)",
+                    mine[0].detail), mine[0].detail
+    assert all(r["device"] == "sparkfun-2" for r in labels.rows) and len(labels.rows) == 2
+
+
+def test_likely_mistakes_are_named() -> None:
+    from ofbe_data.labelling.checks import likely_mistake
+
+    assert likely_mistake(1 / 9.80665) == "values in g declared as m/s2"
+    assert likely_mistake(9.80665) == "values in m/s² declared as g"
+    assert likely_mistake(1000.0) == "values in mg declared as g"
+    assert likely_mistake(2.0).startswith("counts scaled with the wrong lsb_per_g (off by 2^1 = 2")
+    assert likely_mistake(0.0) == "no signal (all readings zero or not finite)"
+    assert likely_mistake(1.7) == "a unit or scale mistake, or a sensor that is not at rest"
