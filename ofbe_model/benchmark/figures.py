@@ -173,8 +173,9 @@ def t_figure(summary: dict[str, Any], path: str | Path, baseline: str,
 
     Positive t: the method's fold RMSEs are lower than the baseline's. Horizontal lines mark
     ± the two-sided critical value at α = 0.05 for df = n_folds − 1 (2.776 for 5 folds). The
-    y axis is symmetric-logarithmic (linear within ± the critical value) when some |t|
-    exceeds 50, and the axis label says so. Infinite or undefined t are not drawn.
+    y axis is symmetric-logarithmic (linear within ± the critical value) when some |t| of any
+    baseline exceeds 50 (so the figures of all baselines share one scale), and the axis label
+    says so. Infinite or undefined t are not drawn.
 
     Parameters
     ----------
@@ -201,7 +202,8 @@ def t_figure(summary: dict[str, Any], path: str | Path, baseline: str,
         raise ValueError(f"t_figure: expected one of the baselines {summary['baselines']}, "
                          f"found {baseline!r}")
     methods = [m for m in _all_methods(summary, method_order) if m != baseline]
-    fig, ax = new_figure(width_in=_figure_width(len(summary["datasets"]), len(methods)), height_in=4.2)
+    fig, ax = new_figure(width_in=max(_figure_width(len(summary["datasets"]), len(methods)), 8.0),
+                         height_in=4.6)
 
     def t_of(ds: dict[str, Any], m: str) -> float | None:
         return ds["methods"][m]["t_test"][baseline]["fold"]["t"]
@@ -221,13 +223,16 @@ def t_figure(summary: dict[str, Any], path: str | Path, baseline: str,
             ax.hlines([c["value"], -c["value"]], i - 0.45, i + 0.45, colors="k", linestyles="--", lw=1,
                       zorder=3, label="± critical |t| of the dataset (α = 0.05)" if i == 0 else None)
     ax.axhline(0.0, color="#333333", lw=0.6, zorder=3)
-    ts = [abs(t_of(summary["datasets"][n], m)) for n in names for m in methods
-          if t_of(summary["datasets"][n], m) is not None]
+    # one scale for the t figures of every baseline, so that they can be compared side by side
+    ts = [abs(t) for n in names for b in summary["baselines"]
+          for m, v in summary["datasets"][n]["methods"].items()
+          if m != b and (t := v["t_test"][b]["fold"]["t"]) is not None]
     symlog = bool(ts) and max(ts) > 50
     if symlog:
         ax.set_yscale("symlog", linthresh=max(c["value"] or 1.0 for c in crits))
     ax.set_ylabel(f"t (fold RMSEs), {baseline} − method" + (" (symlog scale)" if symlog else ""))
-    ax.set_title(f"Paired t-test of the fold RMSEs against {baseline}\n"
+    # over the figure, not the axes: with few datasets the axes are narrower than the title
+    fig.suptitle(f"Paired t-test of the fold RMSEs against {baseline}\n"
                  f"positive: lower error than {baseline}; protocol {summary['protocol']}")
     _legend(ax, len(methods) + 1)
     return save_png(fig, path)
