@@ -185,7 +185,8 @@ def pick_example(rows: pd.DataFrame, axis: str, target: float) -> int:
 
 def histogram_figure(rows: pd.DataFrame, stats: dict[str, AxisConvergence], bins: int,
                      recommended: int, path: Path) -> None:
-    """Histogram of the convergence index per axis, mean ± 1 std shaded."""
+    """Histogram of the convergence index per axis, mean ± 1 std shaded; each panel's title
+    says how many recordings never converged (they have no index and are not drawn)."""
     fig, axes = new_figure(1, 3, width_in=10.0, height_in=3.4, sharey=True)
     for ax, name in zip(axes, AXES, strict=True):
         idx = rows[f"convergence_{name}"].to_numpy()
@@ -197,7 +198,10 @@ def histogram_figure(rows: pd.DataFrame, stats: dict[str, AxisConvergence], bins
                        label="mean ± 1 std")
             ax.axvline(s.mean, color="#dd8452", lw=2, zorder=3, label="mean")
         ax.axvline(recommended, color="k", ls="--", lw=1, zorder=3, label=f"label length ({recommended})")
-        ax.set_title(f"{name}: {s.mean:.0f} ± {s.std:.0f} samples (n = {s.n - s.n_not_converged})")
+        head = (f"{name}: {s.mean:.0f} ± {s.std:.0f} samples (n = {s.n - s.n_not_converged})"
+                if np.isfinite(s.mean) else f"{name}: no recording converged")
+        ax.set_title(f"{head}\n{s.n_not_converged} of {s.n} recordings never converged (not shown)",
+                     fontsize=9)
         ax.set_xlabel("convergence index (samples)")
         ax.set_ylim(0, ax.get_ylim()[1] * 1.35)
     axes[0].set_ylabel("recordings")
