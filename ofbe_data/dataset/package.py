@@ -185,12 +185,16 @@ def _md_table(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> list[str]
 
 
 def _fidelity_table(fidelity: Mapping[str, Any]) -> list[str]:
+    """Label fidelity as Markdown: a row per quantity, per-axis values in columns x, y, z."""
     if fidelity and all(isinstance(v, Mapping) for v in fidelity.values()):
         cols: list[str] = []
         for v in fidelity.values():
             cols += [str(k) for k in v if str(k) not in cols]
         return _md_table(["", *cols], [[k, *(v.get(c) for c in cols)] for k, v in fidelity.items()])
-    return _md_table(["quantity", "value"], [[k, v] for k, v in fidelity.items()])
+    axes = [a for a in ("x", "y", "z") if any(isinstance(v, Mapping) and a in v for v in fidelity.values())]
+    rows = [[k, *((v.get(a) for a in axes) if isinstance(v, Mapping) else [v, *[""] * (len(axes) - 1)])]
+            for k, v in fidelity.items()]
+    return _md_table(["quantity", *(axes or ["value"])], rows)
 
 
 def _readme(info: DatasetInfo, attrs: Mapping[str, Any], meta: pd.DataFrame,
@@ -210,7 +214,7 @@ def _readme(info: DatasetInfo, attrs: Mapping[str, Any], meta: pd.DataFrame,
            "Stationary accelerometer data cut into fixed-length windows, for training and evaluating "
            "orientation-free bias estimators (Levin & Klein, *" + PAPER_TITLE + "*). The input is a window "
            "of raw specific force; the target is the apparent bias b_app = b + (A − I)·u·g_local of the "
-           "recording it comes from, in the sensor frame (raw-formats.md).", "",
+           "recording it comes from, in the sensor frame.", "",
            "## How it was recorded", "", info.description.strip() or "Not described.", "",
            "## How the labels were made", "", info.labelling.strip() or "Not described.", "",
            "## Label fidelity", ""]
