@@ -160,9 +160,9 @@ def _labelling_text(labels: pd.DataFrame) -> str:
     methods = ", ".join(f"{m} ({n})" for m, n in labels["label_method"].value_counts().sort_index().items())
     return ("Labels are the apparent bias b_app = mean(f) − g_local·u over each recording's stationary "
             "segment (ofbe-label; the ofbe toolkit's docs/labelling.md): u is the nearest sensor axis for "
-            "a levelled device, the reference's gravity direction through Rodrigues' rotation for rotated sessions, "
-            "or the norm-constrained pose fit for multi-position sessions. Where a campaign fit determines "
-            "it, the zero-g offset b is given as offset_x/y/z. Label methods: " + methods + ". The label "
+            "a levelled device, the reference's gravity direction through Rodrigues' rotation for rotated "
+            "sessions, or the norm-constrained pose fit for multi-position sessions. Where a campaign fit "
+            "determines it, the zero-g offset b is given as offset_x/y/z. Label methods: " + methods + ". The label "
             "rests on the whole segment, so every window of a recording carries the same label.")
 
 
