@@ -162,8 +162,9 @@ def _labelling_text(labels: pd.DataFrame) -> str:
             "segment (ofbe-label; the ofbe toolkit's docs/labelling.md): u is the nearest sensor axis for "
             "a levelled device, the reference's gravity direction through Rodrigues' rotation for rotated "
             "sessions, or the norm-constrained pose fit for multi-position sessions. Where a campaign fit "
-            "determines it, the zero-g offset b is given as offset_x/y/z. Label methods: " + methods + ". The label "
-            "rests on the whole segment, so every window of a recording carries the same label.")
+            "determines it, the zero-g offset b is given as offset_x/y/z. Label methods: " + methods
+            + ". The label rests on the whole segment, so every window of a recording carries the same "
+            "label.")
 
 
 def build_dataset(labels_dir: str | Path, raw_dir: str | Path, out_dir: str | Path,
