@@ -65,8 +65,6 @@ def violations(path: Path, rel: str) -> list[str]:
                 out.append(f"{where} (command lines are imported by nothing)")
             if top[:2] == ["ofbe_model", "cli"] and parts[1] != "cli":
                 out.append(f"{where} (command lines are imported by nothing)")
-        elif package == "benchmarks" and top[0] in ("pipelines",):
-            pass  # reported above
     return out
 
 
