@@ -10,6 +10,7 @@ from __future__ import annotations
 import os
 import re
 import shutil
+import signal
 import subprocess
 import sys
 import time
@@ -208,14 +209,16 @@ def test_labelling_nothing_is_not_a_success(tmp_path: Path, capsys: pytest.Captu
 
 
 def test_ctrl_c_prints_one_line(tmp_path: Path) -> None:
+    # a CI runner may start us with SIGINT ignored (a background job): give the command the default
+    # disposition, as a terminal would, so that Python installs its KeyboardInterrupt handler
     proc = subprocess.Popen([sys.executable, "-m", "ofbe_data.cli.simulate", "rotated", "--out",
                              str(tmp_path / "camp"), "--jobs", "2"], stderr=subprocess.PIPE, text=True,
-                            cwd=ROOT)
+                            cwd=ROOT, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     deadline = time.monotonic() + 60  # interrupt once the campaign is being written
     while not any(tmp_path.iterdir()) and time.monotonic() < deadline:
         time.sleep(0.05)
     time.sleep(0.5)
-    proc.send_signal(2)
+    proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 130
     last = [ln for ln in err.replace("\r", "\n").splitlines() if ln.strip()][-1]
