@@ -26,9 +26,13 @@ MANIFEST_FORMAT = "ofbe-session/1"
 MANIFEST_NAME = "session.yaml"
 KINDS = ("gravity-aligned", "rotated", "multi-position")
 ROLES = ("dut", "reference")
-FORMATS = ("ofbe-logger", "mscip-csv", "csv")
-TIME_UNITS = ("s", "ms", "us")
-ACC_UNITS = ("m/s2", "g", "counts")
+FORMATS = ("ofbe-logger", "mscip-csv", "mscip-bin", "csv")
+TIME_UNITS = ("s", "ms", "us", "ns", "samples")
+ACC_UNITS = ("m/s2", "g", "mg", "counts")
+TEMPERATURE_UNITS = ("C", "K", "F")
+WHITESPACE = "whitespace"
+"""``delimiter`` value for runs of spaces and/or tabs."""
+COLUMN_KEYS = ("t", "ax", "ay", "az", "temperature")
 ID_PATTERN = re.compile(r"^[A-Za-z0-9._-]+$")
 """Campaign, session, device and recording ids."""
 
@@ -65,25 +69,106 @@ class CsvMapping:
     Attributes
     ----------
     columns
-        Column names for ``t``, ``ax``, ``ay``, ``az``.
+        Column for ``ax``, ``ay``, ``az`` and optionally ``t`` and ``temperature``: names,
+        or 0-based indices when ``header`` is false.
     time_unit
-        ``s``, ``ms`` or ``us``.
+        ``s``, ``ms``, ``us``, ``ns`` or ``samples`` (an index; t = index / rate).
     acc_unit
-        ``m/s2``, ``g`` or ``counts``.
+        ``m/s2``, ``g``, ``mg`` or ``counts``.
     lsb_per_g
-        Counts per g, required when ``acc_unit`` is ``counts``.
+        Counts per g per axis (x, y, z); required when ``acc_unit`` is ``counts``.
     skip_rows
-        Lines to skip before the header line.
+        Lines to skip before the column line (or the first data line without a header).
     delimiter
-        Field delimiter, one character.
+        Field delimiter, one character, or ``whitespace``.
+    header
+        Whether a column-name line follows the skipped rows.
+    comment
+        Lines starting with this string are skipped anywhere (None: no comments).
+    sample_rate_hz
+        Nominal rate, Hz: the time base for ``samples`` or a missing ``t``; otherwise
+        compared with the measured rate (a warning beyond 2 %).
+    zero_counts
+        Counts at zero specific force per axis (counts only; 32768 for unsigned
+        offset-binary ADCs).
+    temperature_unit
+        ``C``, ``K`` or ``F``.
+    range_g
+        Full-scale range, g: readings at ±range_g are saturated (None: found from the data).
     """
 
-    columns: dict[str, str]
-    time_unit: str
-    acc_unit: str
-    lsb_per_g: float | None = None
+    columns: dict[str, str | int]
+    time_unit: str = "s"
+    acc_unit: str = "m/s2"
+    lsb_per_g: tuple[float, float, float] | float | None = None
     skip_rows: int = 0
     delimiter: str = ","
+    header: bool = True
+    comment: str | None = None
+    sample_rate_hz: float | None = None
+    zero_counts: tuple[float, float, float] | float = 0.0
+    temperature_unit: str = "C"
+    range_g: float | None = None
+
+    def lsb_axes(self) -> np.ndarray:
+        """Counts per g per axis, (3,) (ones when not counts)."""
+        if self.lsb_per_g is None:
+            return np.ones(3)
+        return np.broadcast_to(np.asarray(self.lsb_per_g, dtype=np.float64), (3,)).copy()
+
+    def zero_axes(self) -> np.ndarray:
+        """Counts at zero specific force per axis, (3,)."""
+        return np.broadcast_to(np.asarray(self.zero_counts, dtype=np.float64), (3,)).copy()
+
+    def to_dict(self) -> dict[str, Any]:
+        """The manifest keys (defaults left out)."""
+        out: dict[str, Any] = {"columns": dict(self.columns)}
+        if not self.header:
+            out["header"] = False
+        if self.skip_rows:
+            out["skip_rows"] = self.skip_rows
+        if self.delimiter != ",":
+            out["delimiter"] = self.delimiter
+        if self.comment is not None:
+            out["comment"] = self.comment
+        out["time_unit"] = self.time_unit
+        if self.sample_rate_hz is not None:
+            out["sample_rate_hz"] = self.sample_rate_hz
+        out["acc_unit"] = self.acc_unit
+        for key in ("lsb_per_g", "zero_counts"):
+            value = getattr(self, key)
+            if value is None or (key == "zero_counts" and not np.any(self.zero_axes())):
+                continue
+            out[key] = [float(x) for x in value] if isinstance(value, tuple) else float(value)
+        if "temperature" in self.columns and self.temperature_unit != "C":
+            out["temperature_unit"] = self.temperature_unit
+        if self.range_g is not None:
+            out["range_g"] = self.range_g
+        return out
+
+
+@dataclass(frozen=True)
+class BinOptions:
+    """Options of an ``mscip-bin`` device entry (raw-formats.md, "mscip-bin").
+
+    Attributes
+    ----------
+    sample_rate_hz
+        Time base when the stream has no time sub-packets, Hz (None: from the stream).
+    acc_unit
+        Unit of the accelerometer sub-packet: ``g`` (default), ``mg`` or ``m/s2``.
+    """
+
+    sample_rate_hz: float | None = None
+    acc_unit: str = "g"
+
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {}
+        if self.sample_rate_hz is not None:
+            out["sample_rate_hz"] = self.sample_rate_hz
+        if self.acc_unit != "g":
+            out["acc_unit"] = self.acc_unit
+        return out
 
 
 @dataclass(frozen=True)
@@ -105,6 +190,8 @@ class DeviceSpec:
         None when not given (identity assumed where needed).
     csv
         Column/unit mapping for ``format: csv``.
+    bin
+        Options for ``format: mscip-bin``.
     extra
         Further keys of the entry, kept as written.
     """
@@ -116,21 +203,16 @@ class DeviceSpec:
     reference_to_sensor: np.ndarray | None = None
     csv: CsvMapping | None = None
     extra: dict[str, Any] = field(default_factory=dict)
+    bin: BinOptions | None = None
 
     def to_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {"model": self.model, "role": self.role, "format": self.format}
         if self.reference_to_sensor is not None:
             out["reference_to_sensor"] = _matrix_to_list(self.reference_to_sensor)
         if self.csv is not None:
-            out["columns"] = dict(self.csv.columns)
-            out["time_unit"] = self.csv.time_unit
-            out["acc_unit"] = self.csv.acc_unit
-            if self.csv.lsb_per_g is not None:
-                out["lsb_per_g"] = self.csv.lsb_per_g
-            if self.csv.skip_rows:
-                out["skip_rows"] = self.csv.skip_rows
-            if self.csv.delimiter != ",":
-                out["delimiter"] = self.csv.delimiter
+            out.update(self.csv.to_dict())
+        if self.bin is not None:
+            out.update(self.bin.to_dict())
         out.update(self.extra)
         return out
 
@@ -316,28 +398,84 @@ def _parse_rotation(v: _Validator, value: Any, where: FieldPath) -> np.ndarray:
     return m
 
 
+def _per_axis(v: _Validator, value: Any, where: FieldPath, lo: float, hi: float
+              ) -> tuple[float, float, float] | float:
+    if isinstance(value, list):
+        if len(value) != 3:
+            raise v.fail(where, f"a number in [{lo:g}, {hi:g}] or three of them [x, y, z]", _describe(value))
+        x, y, z = (v.number(item, [*where, i], lo, hi) for i, item in enumerate(value))
+        return (x, y, z)
+    return v.number(value, where, lo, hi)
+
+
 def _parse_csv_mapping(v: _Validator, entry: dict[str, Any], where: list[str | int]) -> CsvMapping:
+    header = entry.get("header", True)
+    if not isinstance(header, bool):
+        raise v.fail([*where, "header"], "true or false", _describe(header))
     cols = v.mapping(v.get(entry, where, "columns"), [*where, "columns"])
-    columns: dict[str, str] = {}
-    for key in ("t", "ax", "ay", "az"):
-        name = v.get(cols, [*where, "columns"], key)
-        if not isinstance(name, str) or not name:
-            raise v.fail([*where, "columns", key], "a column name", _describe(name))
+    for key in cols:
+        if key not in COLUMN_KEYS:
+            raise v.fail([*where, "columns", key], "a column key among " + ", ".join(COLUMN_KEYS),
+                         _describe(key))
+    columns: dict[str, str | int] = {}
+    for key in COLUMN_KEYS:
+        if key not in cols:
+            if key in ("t", "temperature"):
+                continue
+            v.get(cols, [*where, "columns"], key)
+        name = cols[key]
+        if header:
+            if isinstance(name, bool) or not isinstance(name, str | int) or name == "":
+                raise v.fail([*where, "columns", key], "a column name", _describe(name))
+            name = str(name)
+        elif isinstance(name, bool) or not isinstance(name, int) or name < 0:
+            raise v.fail([*where, "columns", key], "a 0-based column index (header: false)", _describe(name))
         columns[key] = name
-    time_unit = v.choice(v.get(entry, where, "time_unit"), [*where, "time_unit"], TIME_UNITS)
-    acc_unit = v.choice(v.get(entry, where, "acc_unit"), [*where, "acc_unit"], ACC_UNITS)
-    lsb = None
+    if len(set(columns.values())) != len(columns):
+        raise v.fail([*where, "columns"], "a different column for each key", _describe(cols))
+    time_unit = v.choice(entry.get("time_unit", "s"), [*where, "time_unit"], TIME_UNITS)
+    rate = None
+    if entry.get("sample_rate_hz") is not None:
+        rate = v.number(entry["sample_rate_hz"], [*where, "sample_rate_hz"], 1e-3, 1e7)
+    if rate is None and ("t" not in columns or time_unit == "samples"):
+        what = "time_unit: samples" if "t" in columns else "no t column"
+        raise v.fail([*where, "sample_rate_hz"], f"the sample rate in Hz ({what})", "it missing")
+    acc_unit = v.choice(entry.get("acc_unit", "m/s2"), [*where, "acc_unit"], ACC_UNITS)
+    lsb: tuple[float, float, float] | float | None = None
+    zero: tuple[float, float, float] | float = 0.0
     if acc_unit == "counts":
-        lsb = v.number(v.get(entry, where, "lsb_per_g"), [*where, "lsb_per_g"], 1e-9, 1e9)
+        lsb = _per_axis(v, v.get(entry, where, "lsb_per_g"), [*where, "lsb_per_g"], 1e-9, 1e12)
+        zero = _per_axis(v, entry.get("zero_counts", 0), [*where, "zero_counts"], -1e12, 1e12)
+    else:
+        for key in ("lsb_per_g", "zero_counts"):
+            if key in entry:
+                raise v.fail([*where, key], "no " + key + " unless acc_unit is counts", f"acc_unit {acc_unit}")
     skip = v.integer(entry.get("skip_rows", 0), [*where, "skip_rows"])
     delim = entry.get("delimiter", ",")
-    if not isinstance(delim, str) or len(delim) != 1 or delim in "\r\n\"":
-        raise v.fail([*where, "delimiter"], "a single delimiter character", _describe(delim))
-    return CsvMapping(columns, time_unit, acc_unit, lsb, skip, delim)
+    if delim != WHITESPACE and (not isinstance(delim, str) or len(delim) != 1 or delim in "\r\n\""):
+        raise v.fail([*where, "delimiter"], "a single delimiter character or whitespace", _describe(delim))
+    comment = entry.get("comment")
+    if comment is not None and (not isinstance(comment, str) or not comment or "\n" in comment):
+        raise v.fail([*where, "comment"], "the string that starts a comment line", _describe(comment))
+    t_unit = v.choice(entry.get("temperature_unit", "C"), [*where, "temperature_unit"], TEMPERATURE_UNITS)
+    range_g = None
+    if entry.get("range_g") is not None:
+        range_g = v.number(entry["range_g"], [*where, "range_g"], 1e-3, 1e4)
+    return CsvMapping(columns, time_unit, acc_unit, lsb, skip, str(delim), header, comment, rate, zero,
+                      t_unit, range_g)
 
 
-_DEVICE_KEYS = {"model", "role", "format", "reference_to_sensor", "columns", "time_unit",
-                "acc_unit", "lsb_per_g", "skip_rows", "delimiter"}
+def _parse_bin_options(v: _Validator, entry: dict[str, Any], where: list[str | int]) -> BinOptions:
+    rate = None
+    if entry.get("sample_rate_hz") is not None:
+        rate = v.number(entry["sample_rate_hz"], [*where, "sample_rate_hz"], 1e-3, 1e7)
+    unit = v.choice(entry.get("acc_unit", "g"), [*where, "acc_unit"], ("g", "mg", "m/s2"))
+    return BinOptions(rate, unit)
+
+
+_CSV_KEYS = {"columns", "time_unit", "acc_unit", "lsb_per_g", "skip_rows", "delimiter", "header", "comment",
+             "sample_rate_hz", "zero_counts", "temperature_unit", "range_g"}
+_DEVICE_KEYS = {"model", "role", "format", "reference_to_sensor"} | _CSV_KEYS
 
 
 def _parse_devices(v: _Validator, data: dict[str, Any]) -> dict[str, DeviceSpec]:
@@ -358,8 +496,9 @@ def _parse_devices(v: _Validator, data: dict[str, Any]) -> dict[str, DeviceSpec]
         if entry.get("reference_to_sensor") is not None:
             r2s = _parse_rotation(v, entry["reference_to_sensor"], [*where, "reference_to_sensor"])
         csv = _parse_csv_mapping(v, entry, where) if fmt == "csv" else None
+        opts = _parse_bin_options(v, entry, where) if fmt == "mscip-bin" else None
         extra = {k: val for k, val in entry.items() if k not in _DEVICE_KEYS}
-        devices[str(dev_id)] = DeviceSpec(str(dev_id), model, role, fmt, r2s, csv, extra)
+        devices[str(dev_id)] = DeviceSpec(str(dev_id), model, role, fmt, r2s, csv, extra, opts)
     return devices
 
 
