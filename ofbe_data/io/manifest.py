@@ -449,7 +449,7 @@ def _parse_csv_mapping(v: _Validator, entry: dict[str, Any], where: list[str | i
     else:
         for key in ("lsb_per_g", "zero_counts"):
             if key in entry:
-                raise v.fail([*where, key], "no " + key + " unless acc_unit is counts", f"acc_unit {acc_unit}")
+                raise v.fail([*where, key], f"no {key} unless acc_unit is counts", f"acc_unit {acc_unit}")
     skip = v.integer(entry.get("skip_rows", 0), [*where, "skip_rows"])
     delim = entry.get("delimiter", ",")
     if delim != WHITESPACE and (not isinstance(delim, str) or len(delim) != 1 or delim in "\r\n\""):

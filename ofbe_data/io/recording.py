@@ -17,6 +17,10 @@ SKIP_OUT_OF_RANGE = "out-of-range"
 SKIP_NON_INCREASING_TIME = "non-increasing-time"
 
 
+TEMPERATURE = "temperature_c"
+"""Key of a per-sample temperature (°C) in :attr:`Recording.extra`."""
+
+
 @dataclass(frozen=True)
 class SkippedLine:
     """A data line that was counted and skipped, never guessed.

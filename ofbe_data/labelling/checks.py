@@ -40,6 +40,12 @@ MAX_RATE_DEVIATION = 0.5
 """A measured rate more than 50 % from the header's nominal one rejects the recording."""
 WARN_RATE_DEVIATION = 0.05
 """More than 5 % from the nominal rate (crystal error is < 0.01 %) is worth a warning."""
+CSV_WARN_RATE_DEVIATION = 0.02
+"""raw-formats.md: a generic csv whose measured rate is more than 2 % from its
+``sample_rate_hz`` gets a warning."""
+UNEVEN_STEP_CV = 0.1
+"""Sample steps whose standard deviation exceeds this fraction of the median step are
+reported as uneven spacing (host-clock stamps); the data is not resampled."""
 RATE_STEP_FACTOR = 1.3
 """Blocks of the file whose median sample step differs from the file's by this factor (either
 way) show a rate change mid-file."""
@@ -106,12 +112,14 @@ def level_tilt_deg(mean: np.ndarray, axis: np.ndarray) -> float:
     return math.degrees(math.acos(c))
 
 
-def rate_problem(fs_hz: float, nominal_hz: float | None) -> tuple[str, bool] | None:
+def rate_problem(fs_hz: float, nominal_hz: float | None, warn_deviation: float = WARN_RATE_DEVIATION
+                 ) -> tuple[str, bool] | None:
     """A measured sample rate that is wrong, as (description, reject?), or None.
 
     Rejected: outside :data:`RATE_RANGE_HZ` (a time-unit mistake), or more than
     :data:`MAX_RATE_DEVIATION` from the header's nominal rate. Warned: more than
-    :data:`WARN_RATE_DEVIATION` from it.
+    ``warn_deviation`` from it (default :data:`WARN_RATE_DEVIATION`; the generic csv format
+    warns at :data:`CSV_WARN_RATE_DEVIATION`).
     """
     lo, hi = RATE_RANGE_HZ
     if not lo <= fs_hz <= hi:
@@ -122,7 +130,7 @@ def rate_problem(fs_hz: float, nominal_hz: float | None) -> tuple[str, bool] | N
         text = f"measured sample rate {fs_hz:.4g} Hz is {dev:+.1%} from the nominal {nominal_hz:g} Hz"
         if abs(dev) > MAX_RATE_DEVIATION:
             return text + " (wrong time unit, or the wrong device's file?)", True
-        if abs(dev) > WARN_RATE_DEVIATION:
+        if abs(dev) > warn_deviation:
             return text, False
     return None
 

@@ -35,14 +35,17 @@ from ofbe_data import __version__
 from ofbe_data.core.errors import ConfigError
 from ofbe_data.io.formats import read_device_file
 from ofbe_data.io.manifest import DeviceSpec, SessionManifest, load_manifest
-from ofbe_data.io.recording import Recording
+from ofbe_data.io.recording import TEMPERATURE, Recording
 from ofbe_data.io.typedconfig import from_plain, read_section
 from ofbe_data.labelling.campaign_fit import CampaignFitParams
 from ofbe_data.labelling.checks import (
+    CSV_WARN_RATE_DEVIATION,
     MAX_LEVEL_TILT_DEG,
     MAX_MOUNT_ERROR_DEG,
     MAX_NORM_DEVIATION,
+    UNEVEN_STEP_CV,
     WARN_LEVEL_TILT_DEG,
+    WARN_RATE_DEVIATION,
     clipped_samples,
     level_tilt_deg,
     mount_error_deg,
@@ -302,9 +305,16 @@ def _typical_reading(acc: np.ndarray) -> np.ndarray:
 
 def _rate_warnings(out: SessionLabels, rec_id: str, dev_id: str, rec: Recording) -> None:
     """Warnings for a sample rate off its nominal value, or changing inside the file."""
-    rate = rate_problem(rec.fs_hz, rec.nominal_rate_hz)
+    warn = CSV_WARN_RATE_DEVIATION if rec.format == "csv" else WARN_RATE_DEVIATION
+    rate = rate_problem(rec.fs_hz, rec.nominal_rate_hz, warn)
     if rate is not None and not rate[1]:
         out.warnings.append(f"{rec_id}/{dev_id}: {rec.path.name}: {rate[0]}")
+    cv = float(rec.header.get("step_cv", "nan"))
+    if cv > UNEVEN_STEP_CV:
+        out.warnings.append(f"{rec_id}/{dev_id}: {rec.path.name}: uneven sample spacing (step sd "
+                            f"{cv:.0%} of the median step {rec.header.get('step_median_s')} s, longest "
+                            f"{rec.header.get('step_max_s')} s, {len(rec.diagnostics.gaps)} gaps); "
+                            "used as logged, not resampled")
     step = rate_step(rec.t)
     if step is not None:
         i, before, after = step
@@ -312,6 +322,15 @@ def _rate_warnings(out: SessionLabels, rec_id: str, dev_id: str, rec: Recording)
         out.warnings.append(f"{rec_id}/{dev_id}: {rec.path.name}: the sample rate changes from "
                             f"{before:.4g} Hz to {after:.4g} Hz around line {line}; fs_hz "
                             f"({rec.fs_hz:.4g} Hz) is an average")
+
+
+def _temperature(rec: Recording, seg: _Segment) -> float | None:
+    """Mean temperature over the segment, °C, when the file has a temperature column."""
+    temp = rec.extra.get(TEMPERATURE)
+    if temp is None or seg.stop <= seg.start:
+        return None
+    value = float(np.mean(temp[seg.start:seg.stop]))
+    return value if math.isfinite(value) else None
 
 
 def _base_row(m: SessionManifest, rec_id: str, dev: DeviceSpec, rec: Recording, seg: _Segment,
@@ -332,6 +351,7 @@ def _base_row(m: SessionManifest, rec_id: str, dev: DeviceSpec, rec: Recording, 
         "skipped_lines": len(rec.diagnostics.skipped),
         "missing_samples": rec.diagnostics.missing_samples,
         "offset_x": None, "offset_y": None, "offset_z": None, "fit_condition": None,
+        "pose": 0, "temperature_c": _temperature(rec, seg),
         "_mean": x.mean(axis=0),
         **({"_segment": x} if keep_segment else {}),
     }

@@ -46,6 +46,7 @@ LABEL_SCHEMA = pa.schema([
     ("segment_start_s", pa.float64()), ("segment_end_s", pa.float64()),
     ("std_x", pa.float64()), ("std_y", pa.float64()), ("std_z", pa.float64()),
     ("skipped_lines", pa.int64()), ("missing_samples", pa.int64()), ("fit_condition", pa.float64()),
+    ("pose", pa.int64()), ("temperature_c", pa.float64()),
 ])
 
 

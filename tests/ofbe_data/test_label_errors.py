@@ -292,7 +292,7 @@ MANIFEST_ERRORS = [
                  id="file-path-escapes-session"),
     pytest.param(GA, "format: ofbe-logger}\nrecordings", "format: adxl-raw}\nrecordings",
                  "{manifest}:9: devices.sparkfun-2.format: expected one of ofbe-logger, mscip-csv, "
-                 "csv, found str 'adxl-raw'", id="unknown-device-format"),
+                 "mscip-bin, csv, found str 'adxl-raw'", id="unknown-device-format"),
 ]
 
 

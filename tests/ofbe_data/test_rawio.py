@@ -206,7 +206,7 @@ def test_mscip_reader(write_text):
     assert rec.start_utc == datetime(2025, 3, 14, 10, 22, 31, 512000, tzinfo=UTC)
     assert rec.nominal_rate_hz == 200.0 and rec.header["Serial"] == "3025-00417"
     assert rec.diagnostics.gaps == (Gap(9, 0.015, pytest.approx(0.01), 1),)
-    np.testing.assert_array_equal(rec.extra["Temperature (C)"], [31.2, 31.2, 31.2])
+    np.testing.assert_array_equal(rec.extra["temperature_c"], [31.2, 31.2, 31.2])
     assert rec.diagnostics.preamble_lines == 6
 
 

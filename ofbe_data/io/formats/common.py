@@ -392,7 +392,8 @@ def _clean_times(body: _Body, t: np.ndarray, max_step: float, modulus: int | Non
     return out, wraps
 
 
-def find_gaps(t: np.ndarray, lines: np.ndarray, period_s: float | None) -> tuple[Gap, ...]:
+def find_gaps(t: np.ndarray, lines: np.ndarray, period_s: float | None,
+              factor: float | None = None) -> tuple[Gap, ...]:
     """Gaps in a time series.
 
     Parameters
@@ -403,6 +404,8 @@ def find_gaps(t: np.ndarray, lines: np.ndarray, period_s: float | None) -> tuple
         (N,) file line of each sample.
     period_s
         Nominal sample period, s; the median step is used when None.
+    factor
+        A step longer than this many periods is a gap (default :data:`GAP_FACTOR`).
 
     Returns
     -------
@@ -413,7 +416,7 @@ def find_gaps(t: np.ndarray, lines: np.ndarray, period_s: float | None) -> tuple
         return ()
     dt = np.diff(t)
     period = float(np.median(dt)) if period_s is None else period_s
-    idx = np.flatnonzero(dt > GAP_FACTOR * period)
+    idx = np.flatnonzero(dt > (GAP_FACTOR if factor is None else factor) * period)
     return tuple(
         Gap(int(lines[i + 1]), float(t[i + 1]), float(dt[i]), int(round(dt[i] / period)) - 1)
         for i in idx

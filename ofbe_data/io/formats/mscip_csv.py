@@ -31,6 +31,7 @@ from ofbe_data.io.formats.common import (
 )
 from ofbe_data.io.gravity import G0
 from ofbe_data.io.recording import (
+    TEMPERATURE,
     ReadDiagnostics,
     Recording,
 )
@@ -81,7 +82,9 @@ def read_mscip_csv(path: str | Path, device: str | None = None) -> Recording:
             raise RawFormatError(path, "Sample Rate (Hz),<number>",
                                  repr(header["Sample Rate (Hz)"])) from None
     gaps = find_gaps(t, body.lines, 1.0 / rate if rate else None)
-    extra = {c: v[c] for c in (*MSCIP_GYRO, MSCIP_TEMP) if c in v}
+    extra = {c: v[c] for c in MSCIP_GYRO if c in v}
+    if MSCIP_TEMP in v:
+        extra[TEMPERATURE] = v[MSCIP_TEMP]
     diag = ReadDiagnostics(path, col_line, body.lines_read, int(t.shape[0]), tuple(body.skipped),
                            gaps)
     hdr = header | ({"device": device} if device else {})
