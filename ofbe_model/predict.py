@@ -10,8 +10,11 @@ margin where it borders motion) are the window the model sees, as the test signa
 benchmark are.
 
 Output: JSON (default) or a table, one entry per device file: the bias in m/s² and, for
-methods that have one, its standard deviation. Exit 0 when every file got an estimate, 1
-when some could not (a one-line reason each; the others are still printed), 2 on a usage
+methods that have one, its standard deviation. The model's training domain (devices, sample
+rates, window length) is printed with it: a device the model never saw gets a warning, a
+sample rate outside the trained range no estimate unless ``--allow-outside-domain``, and a
+window whose ‖mean‖ is far from g_local (a unit mistake) none at all. Exit 0 when every file
+got an estimate, 1 when some could not (a one-line reason each; the others are still printed), 2 on a usage
 error.
 """
 
@@ -32,8 +35,10 @@ from ofbe_data.io.formats.ofbe_logger import read_ofbe_logger
 from ofbe_data.io.gravity import G0 as STANDARD_GRAVITY
 from ofbe_data.io.manifest import MANIFEST_NAME, load_manifest
 from ofbe_data.io.recording import Recording
+from ofbe_data.labelling.checks import norm_problem
 from ofbe_data.labelling.stationarity import StaticParams, check_static, longest_run
 from ofbe_model.estimators.base import Estimator, EstimatorError
+from ofbe_model.estimators.domain import TrainingDomain, domain_problems
 
 DEFAULT_WINDOW = 3000
 
@@ -136,8 +141,37 @@ def first_still_window(rec: Recording, length: int, margin_s: float = 1.0,
     return rec.acc[a:a + length], n, ""
 
 
-def predict(model: Estimator, items: Sequence[Target], length: int) -> list[dict[str, Any]]:
-    """One result per target: bias (and std) or the problem."""
+def trained_on(model: Estimator) -> str | None:
+    """One line on the model's training data (None for models saved without the record)."""
+    domain: TrainingDomain | None = getattr(model, "domain_", None)
+    return None if domain is None else domain.describe()
+
+
+def _screen(model: Estimator, t: Target, w: np.ndarray, allow_outside: bool, entry: dict[str, Any]) -> bool:
+    """Plausibility and training-domain checks of one window; False when it gets no estimate."""
+    assert t.recording is not None
+    norm = norm_problem(w.mean(axis=0), t.g_local)
+    if norm is not None:
+        entry["error"] = f"implausible-norm: {norm}"
+        return False
+    refusals, warns = domain_problems(getattr(model, "domain_", None), t.device, t.recording.fs_hz)
+    if refusals and not allow_outside:
+        entry["error"] = ("outside the training domain: " + "; ".join(refusals)
+                          + " (--allow-outside-domain to estimate anyway)")
+        return False
+    if refusals or warns:
+        entry["warnings"] = refusals + warns
+    return True
+
+
+def predict(model: Estimator, items: Sequence[Target], length: int, allow_outside: bool = False
+            ) -> list[dict[str, Any]]:
+    """One result per target: bias (and std) or the problem.
+
+    A window whose ‖mean‖ is implausible for its local gravity (a unit mistake, methods.md
+    §9) or whose sample rate lies outside the model's training domain gets no estimate (the
+    latter unless ``allow_outside``); a device the model never saw gets a warning.
+    """
     results: list[dict[str, Any]] = []
     ready, windows = [], []
     for t in items:
@@ -147,16 +181,18 @@ def predict(model: Estimator, items: Sequence[Target], length: int) -> list[dict
         else:
             w, n, problem = first_still_window(t.recording, length)
             entry["still_samples"] = n
+            entry["fs_hz"] = round(float(t.recording.fs_hz), 6)
             if w is None:
                 entry["error"] = problem
-            else:
+            elif _screen(model, t, w, allow_outside, entry):
                 ready.append(len(results))
                 windows.append(w)
         results.append(entry)
     if windows:
         X = np.stack(windows).astype(np.float32)
         meta = pd.DataFrame({"device": [results[i]["device"] for i in ready],
-                             "g_local": [results[i]["g_local"] for i in ready]})
+                             "g_local": [results[i]["g_local"] for i in ready],
+                             "fs_hz": [results[i]["fs_hz"] for i in ready]})
         bias = np.asarray(model.predict(X, meta), dtype=np.float64)
         std = np.asarray(model.predict_std(X, meta), dtype=np.float64) if model.has_std else None
         for j, i in enumerate(ready):

@@ -14,7 +14,7 @@ from ofbe_data.core.cli import EXIT_USAGE, add_verbose, command, fail, quiet_lib
 from ofbe_data.core.errors import OfbeError
 from ofbe_data.io.gravity import G0 as STANDARD_GRAVITY
 from ofbe_model.estimators.base import EstimatorError
-from ofbe_model.predict import DEFAULT_WINDOW, load_model, predict, targets, window_length_of
+from ofbe_model.predict import DEFAULT_WINDOW, load_model, predict, targets, trained_on, window_length_of
 
 PROG = "ofbe-predict"
 MIN_WINDOW = 2
@@ -49,6 +49,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--window-length", type=int, help="samples per window for models that take any length "
                                                      f"(default {DEFAULT_WINDOW})")
     p.add_argument("--output", choices=("json", "table"), default="json")
+    p.add_argument("--allow-outside-domain", action="store_true",
+                   help="estimate even where the sample rate is outside the model's training range")
     add_verbose(p)
     return p
 
@@ -65,15 +67,22 @@ def main(argv: Sequence[str] | None = None) -> int:
         fixed = window_length_of(model)
         length = fixed or (args.window_length if args.window_length is not None else DEFAULT_WINDOW)
         items = targets(args.recordings, args.device, args.g_local)
-        results = predict(model, items, length)
+        results = predict(model, items, length, args.allow_outside_domain)
     except OfbeError as exc:
         print(f"ofbe-predict: error: {exc}", file=sys.stderr)
         return 2 if isinstance(exc, EstimatorError) else 1
     method = getattr(model, "name", type(model).__name__)
+    domain = trained_on(model)
     if args.output == "json":
-        print(json.dumps({"model": str(args.model), "method": method, "results": results}, indent=1))
+        print(json.dumps({"model": str(args.model), "method": method, "trained_on": domain,
+                          "results": results}, indent=1))
     else:
         print(_table(results, method))
+    print(f"ofbe-predict: {method} trained on "
+          f"{domain or 'unknown data (a model saved before ofbe kept its training domain)'}", file=sys.stderr)
+    for r in results:
+        for w in r.get("warnings", ()):
+            print(f"ofbe-predict: warning: {r['file']}: {w}", file=sys.stderr)
     failed = [r for r in results if "error" in r]
     for r in failed:
         print(f"ofbe-predict: error: {r['file']}: {r['error']}", file=sys.stderr)

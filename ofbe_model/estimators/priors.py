@@ -27,6 +27,7 @@ from ofbe_model.estimators.common import (
     _unit_rows,
     window_means,
 )
+from ofbe_model.estimators.domain import TrainingDomain, domain_of
 
 # ----------------------------------------------------------------------------- prior-mean
 
@@ -370,6 +371,7 @@ class GravityPrior(Estimator):
                 self.means_[d], self.covs_[d] = gaussian_prior(y[rows], self.min_std_mg * MG)
                 self.slopes_[d], self.centres_[d] = np.zeros((3, 3)), np.zeros(3)
             self.counts_[d] = int(np.sum(rows))
+        self.domain_ = domain_of(windows, meta)
         return self
 
     def _prior_mean(self, d: str, h: np.ndarray) -> np.ndarray:
@@ -422,7 +424,8 @@ class GravityPrior(Estimator):
         dict
             ``{"format": "ofbe-gravity-prior/1", "params": {...}, "obs_std": σ_y (m/s²),
             "devices": {device: {"count": int, "mean": [3] m/s², "cov": [[3]×3] (m/s²)²,
-            "slope": [[3]×3] m/s², "centre": [3]}}}``.
+            "slope": [[3]×3] m/s², "centre": [3]}}, "training_domain": {...}}`` (the last
+            from :class:`~ofbe_model.estimators.domain.TrainingDomain`).
         """
         _check_fitted(self, "means_")
         return {
@@ -432,6 +435,7 @@ class GravityPrior(Estimator):
             "devices": {d: {"count": int(self.counts_[d]), "mean": self.means_[d].tolist(),
                             "cov": self.covs_[d].tolist(), "slope": self.slopes_[d].tolist(),
                             "centre": self.centres_[d].tolist()} for d in sorted(self.means_)},
+            **({} if getattr(self, "domain_", None) is None else {"training_domain": self.domain_.to_dict()}),
         }
 
     @classmethod
@@ -491,6 +495,7 @@ class GravityPrior(Estimator):
             means[d], covs[d], counts[d], slopes[d], centres[d] = mean, cov, count, slope, centre
         est.obs_std_ = float(obs_std)
         est.means_, est.covs_, est.counts_, est.slopes_, est.centres_ = means, covs, counts, slopes, centres
+        est.domain_ = TrainingDomain.from_dict(data.get("training_domain"))
         return est
 
     def save(self, path: str | Path) -> None:

@@ -49,6 +49,7 @@ import pandas as pd
 from ofbe_data.core.cli import import_tensorflow
 from ofbe_data.core.errors import ConfigError
 from ofbe_model.estimators.base import Estimator, EstimatorError, check_inputs, register
+from ofbe_model.estimators.domain import TrainingDomain, domain_of
 from ofbe_model.ofbenet.layers import HEAD_LAYER, Destandardise, Standardise, build_ofbenet
 from ofbe_model.ofbenet.params import (
     _KERAS_FILES,
@@ -349,6 +350,7 @@ class OFBENet(Estimator):
         self.n_val_ = int(val.sum())
         self.best_epoch_ = int(np.argmin(losses)) + 1
         self.fit_seconds_ = time.perf_counter() - t0
+        self.domain_ = domain_of(windows, meta)
         return self
 
     # -- prediction -------------------------------------------------------------------------
@@ -399,6 +401,7 @@ class OFBENet(Estimator):
                 "history": getattr(self, "history_", None), "n_train": getattr(self, "n_train_", None),
                 "n_val": getattr(self, "n_val_", None), "best_epoch": getattr(self, "best_epoch_", None),
                 "fit_seconds": getattr(self, "fit_seconds_", None),
+                "training_domain": None if getattr(self, "domain_", None) is None else self.domain_.to_dict(),
                 "versions": {"keras": keras.__version__, "tensorflow": tf.__version__}}
 
     def save(self, path: str | Path) -> Path:
@@ -535,6 +538,7 @@ class OFBENet(Estimator):
                 setattr(est, f"{key}_", sidecar[key])
         if isinstance(sidecar.get("fit_seconds"), int | float):
             est.fit_seconds_ = float(sidecar["fit_seconds"])
+        est.domain_ = TrainingDomain.from_dict(sidecar.get("training_domain"))
         return est
 
 

@@ -143,3 +143,35 @@ def test_predict_on_a_bare_file(rotated, tmp_path, capsys) -> None:
     assert predict_main([str(path), str(bare), "--window-length", "100000"]) == 1
     err = capsys.readouterr().err
     assert "still samples, at least 100000 needed" in err and "sparkfun-1.csv" in err
+
+
+def test_predict_says_what_the_model_was_trained_on_and_refuses_another_rate(rotated, tmp_path,
+                                                                              capsys) -> None:
+    from ofbe_data import load_dataset
+
+    tmp, ds = rotated
+    data = load_dataset(ds)
+    session = tmp / "raw" / "rot-pc001"
+    meta = data.meta.copy()
+    meta["fs_hz"] = 400.0  # as if trained on 400 Hz loggers; the session's DUTs run at 150 Hz
+    meta["device"] = meta["device"].str.replace("sparkfun-2", "other-unit")
+    path = tmp_path / "gp.json"
+    GravityPrior().fit(data.X, data.y, meta).save(path)
+    assert json.loads(path.read_text())["training_domain"]["fs_hz"] == [400.0, 400.0]
+    assert predict_main([str(path), str(session), "--window-length", str(T)]) == 1
+    captured = capsys.readouterr()
+    out = json.loads(captured.out)
+    assert "400 Hz" in out["trained_on"] and "other-unit, sparkfun-1" in out["trained_on"]
+    assert all(r["error"].startswith("outside the training domain: sample rate 150 Hz is outside what the "
+                                     "model was trained on (400 Hz, ±10%) (--allow-outside-domain")
+               for r in out["results"])
+    assert ("ofbe-predict: gravity-prior trained on 288 windows of 1000 samples from other-unit, "
+            "sparkfun-1, 400 Hz") in captured.err
+    assert predict_main([str(path), str(session), "--window-length", str(T), "--allow-outside-domain"]) == 0
+    captured = capsys.readouterr()
+    results = json.loads(captured.out)["results"]
+    assert all(len(r["bias_m_s2"]) == 3 for r in results)
+    unseen = [r for r in results if r["device"] == "sparkfun-2"]
+    assert unseen
+    assert all("device 'sparkfun-2' is not among the 2 devices" in r["warnings"][-1] for r in unseen)
+    assert "warning: " in captured.err and "sparkfun-2.csv: device 'sparkfun-2' is not among" in captured.err
