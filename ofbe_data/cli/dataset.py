@@ -88,6 +88,9 @@ def _build(args: argparse.Namespace) -> int:
                                progress=not args.quiet)
     except OfbeError as exc:
         return fail(PROG, str(exc), 1)
+    except OSError as exc:
+        return fail(PROG, f"{exc.filename or out}: {exc.strerror or exc}: the dataset could not be written "
+                          "(nothing partial is kept; free space and rerun)", 1)
     if not args.quiet:
         print(f"ofbe-dataset: {result.n_windows} windows from {result.n_recordings} recordings "
               f"({len(result.excluded)} too short), protocols {', '.join(result.protocols)} -> {result.path}",

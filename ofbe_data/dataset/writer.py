@@ -5,6 +5,7 @@ from __future__ import annotations
 import io
 import json
 import os
+import shutil
 import sys
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -43,6 +44,9 @@ _MERGE_BLOCKS = 256  # metadata blocks merged into one array per column, to boun
 # ---------------------------------------------------------------------------------------------
 # Validation of appended metadata
 
+
+FREE_SPACE_RESERVE = 16 * 2**20
+"""Bytes kept free beyond what the next write needs (HDF5 metadata, the Parquet, the card)."""
 
 def _as_strings(col: pd.Series, name: str, path: Path) -> np.ndarray:
     values = col.tolist()
@@ -252,6 +256,16 @@ class WindowWriter:
             raise
         return self
 
+    def _need_space(self, nbytes: int, what: str) -> None:
+        """Refuse, before HDF5 sees a full disk (it may then crash the process), when the
+        folder's file system has less than ``nbytes`` plus :data:`FREE_SPACE_RESERVE` free."""
+        free = shutil.disk_usage(self.folder).free
+        if free < nbytes + FREE_SPACE_RESERVE:
+            need = (nbytes + FREE_SPACE_RESERVE) / 2**20
+            raise DatasetError(self._h5_path, f"{need:.0f} MiB of free space for {what}",
+                               f"{free / 2**20:.0f} MiB free on its disk (nothing was kept: free space, "
+                               "or build elsewhere with --out, and rerun)")
+
     def append(self, X: np.ndarray, meta: pd.DataFrame) -> None:
         """Append n windows.
 
@@ -289,6 +303,7 @@ class WindowWriter:
         n = arr.shape[0]
         if n == 0:
             return
+        self._need_space(x32.nbytes, f"{n} more windows")
         start = self._n
         self._x.resize(start + n, axis=0)
         self._x[start:start + n] = x32
@@ -311,7 +326,10 @@ class WindowWriter:
 
     def _abort(self) -> None:
         if self._file is not None:
-            self._file.close()
+            try:
+                self._file.close()
+            except Exception:  # noqa: BLE001 - the file is discarded; the original error is re-raised
+                pass
         self._file = None
         self._x = None
         self._tmp_h5.unlink(missing_ok=True)
@@ -326,6 +344,7 @@ class WindowWriter:
         self._blocks, self._pending = [], []
         _check_recordings(cols, self._parquet_path)
         y = np.column_stack([cols["bias_x"], cols["bias_y"], cols["bias_z"]]).astype(np.float64)
+        self._need_space(2 * sum(v.nbytes for v in cols.values()) + y.nbytes, "the labels and metadata")
         f = self._file
         ds_y = f.create_dataset("y", data=y, chunks=(min(self._n, 4096), 3), compression="gzip",
                                 compression_opts=4, shuffle=True, fletcher32=True, track_times=False)

@@ -4,6 +4,7 @@ windows, builds are deterministic, and bad inputs give their errors with nothing
 
 from __future__ import annotations
 
+import re
 import shutil
 from pathlib import Path
 
@@ -260,3 +261,22 @@ def test_verify_command(built, capsys) -> None:
 def _write(path: Path, text: str) -> Path:
     path.write_text(text)
     return path
+
+
+def test_a_full_disk_is_refused_before_hdf5_sees_it(campaigns, tmp_path, capsys, monkeypatch) -> None:
+    import collections
+
+    from ofbe_data.dataset import writer
+
+    usage = collections.namedtuple("usage", "total used free")
+    monkeypatch.setattr(writer.shutil, "disk_usage", lambda _: usage(2**30, 2**30 - 2**20, 2**20))
+    out = tmp_path / "out"
+    code = dataset_cli.main(["build", str(campaigns / "labels" / "ga"), "--raw",
+                             str(campaigns / "raw" / "ga"), "--out", str(out), "--window-length", str(T),
+                             "--stride", str(T), "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 1 and err.count("\n") == 1
+    assert re.fullmatch(r"ofbe-dataset: error: \S+windows\.h5: expected 16 MiB of free space for 3 more "
+                        r"windows, found 1 MiB free on its disk \(nothing was kept: free space, or build "
+                        r"elsewhere with --out, and rerun\)\n", err), err
+    assert not out.exists() and not any(tmp_path.glob(".out*"))
