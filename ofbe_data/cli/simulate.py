@@ -14,7 +14,7 @@ PROG = "ofbe-simulate"
 
 @command(PROG)
 def main(argv: Sequence[str] | None = None) -> int:
-    """``ofbe-simulate CONFIG_OR_PROFILE --out raw/<campaign> [--seed N]``.
+    """``ofbe-simulate CONFIG_OR_PROFILE --out raw/<campaign> [--seed N] [--reference-format F]``.
 
     Returns
     -------
@@ -33,6 +33,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                              "'profile' and override any of its keys)")
     parser.add_argument("--out", required=True, help="campaign folder to create, raw/<campaign>")
     parser.add_argument("--seed", type=int, default=None, help="seed (default: the config's)")
+    parser.add_argument("--reference-format", choices=("mscip-csv", "mscip-bin"), default=None,
+                        help="file format of the reference IMU's recordings (default: the config's "
+                             "reference_format, mscip-csv unless set)")
     add_jobs(parser)
     parser.add_argument("--force", action="store_true", help="replace an existing --out folder")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -40,8 +43,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.jobs < 1:
         return fail(parser.prog, f"--jobs: expected an integer >= 1, found {args.jobs}", EXIT_USAGE)
     try:
+        overrides = ({"reference_format": args.reference_format}
+                     if args.reference_format is not None else None)
         result = simulate_campaign(args.config, args.out, seed=args.seed, jobs=args.jobs,
-                                   force=args.force, progress=not args.quiet)
+                                   force=args.force, progress=not args.quiet, overrides=overrides)
     except OfbeError as exc:
         return fail(parser.prog, str(exc), EXIT_USAGE)
     except OSError as exc:

@@ -12,6 +12,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import yaml
@@ -28,7 +29,7 @@ from ofbe_data.simulator.campaign import (
     simulate_session,
     truth_config,
 )
-from ofbe_data.simulator.config import SimConfig, builtin_profiles, load_config
+from ofbe_data.simulator.config import SimConfig, builtin_profiles, load_config, load_config_from
 from ofbe_data.simulator.writing import write_session
 
 __all__ = ["CampaignResult", "builtin_profiles", "generate_sessions", "load_config",
@@ -100,7 +101,7 @@ def _write_one(args: tuple[SimConfig, CampaignDraw, int, str, np.random.SeedSequ
 
 def simulate_campaign(config: str | Path | SimConfig, out: str | Path, *, seed: int | None = None,
                       jobs: int = 1, force: bool = False, progress: bool = True,
-                      ) -> CampaignResult:
+                      overrides: dict[str, Any] | None = None) -> CampaignResult:
     """Write a simulated campaign: one folder per session plus ``_truth/``.
 
     The campaign is built in a temporary folder beside ``out`` and renamed into place
@@ -120,6 +121,8 @@ def simulate_campaign(config: str | Path | SimConfig, out: str | Path, *, seed: 
         Replace an existing ``out``.
     progress
         Show a progress bar on stderr.
+    overrides
+        Keys merged over the configuration (e.g. ``{"reference_format": "mscip-bin"}``).
 
     Returns
     -------
@@ -132,7 +135,10 @@ def simulate_campaign(config: str | Path | SimConfig, out: str | Path, *, seed: 
     OutputExistsError
         ``out`` exists and ``force`` is False.
     """
-    cfg = config if isinstance(config, SimConfig) else load_config(config)
+    if isinstance(config, SimConfig):
+        cfg = load_config_from(config, overrides) if overrides else config
+    else:
+        cfg = load_config(config, overrides)
     out = Path(out)
     campaign = cfg.campaign or out.name
     if not ID_PATTERN.match(campaign):

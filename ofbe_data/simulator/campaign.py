@@ -20,6 +20,7 @@ from ofbe_data.core.geometry import mul3, norm3, roll_pitch
 from ofbe_data.io.formats.common import WRAP_US, format_utc
 from ofbe_data.io.gravity import G0
 from ofbe_data.io.manifest import (
+    BinOptions,
     DeviceSpec,
     RecordingSpec,
     SessionManifest,
@@ -275,7 +276,7 @@ class DutFile:
 
 @dataclass
 class RefFile:
-    """One simulated ``mscip-csv`` file before writing."""
+    """One simulated reference file (``mscip-csv`` or ``mscip-bin``) before writing."""
 
     t_s: np.ndarray
     acc_g: np.ndarray
@@ -486,8 +487,10 @@ def simulate_session(cfg: SimConfig, draw: CampaignDraw, index: int, campaign: s
         r2s = None if cfg.kind == "gravity-aligned" else np.asarray(d.reference_to_sensor, float)
         devices[d.id] = DeviceSpec(d.id, "ADXL345", "dut", "ofbe-logger", r2s)
     if cfg.reference is not None:
+        binary = cfg.reference_format == "mscip-bin"
         devices[cfg.reference.id] = DeviceSpec(cfg.reference.id, "MS-IMU3025", "reference",
-                                               "mscip-csv")
+                                               cfg.reference_format,
+                                               bin=BinOptions() if binary else None)
     dut_files: dict[tuple[str, str], DutFile] = {}
     ref_files: dict[str, RefFile] = {}
     recordings: list[RecordingSpec] = []
@@ -498,7 +501,8 @@ def simulate_session(cfg: SimConfig, draw: CampaignDraw, index: int, campaign: s
         t_rec = float(np.round(t_rec, 3))
         timeline = _timeline(cfg, rng)
         taps = _taps(cfg, timeline, rng) if cfg.taps.enabled else []
-        files = {dev: f"{rid}/{dev}.csv" for dev in devices}
+        files = {dev: f"{rid}/{dev}.{'bin' if devices[dev].format == 'mscip-bin' else 'csv'}"
+                 for dev in devices}
         nominal = {"roll_deg": setting.nominal_roll_deg, "pitch_deg": setting.nominal_pitch_deg}
         recordings.append(RecordingSpec(rid, files, nominal))
         dev_truth: dict[str, Any] = {}

@@ -148,6 +148,9 @@ class SimConfig:
         ``latitude_deg``/``height_m`` or ``gravity_mps2``.
     duts, reference
         Devices; ``reference`` None for campaigns without one.
+    reference_format
+        File format of the reference's recordings: ``mscip-csv`` (the default) or ``mscip-bin``
+        (the MSCIP byte stream, ``<reference id>.bin``).
     """
 
     kind: str = "rotated"
@@ -166,7 +169,11 @@ class SimConfig:
     reference_model: ReferenceModel = ReferenceModel()
     tilts: TiltConfig = TiltConfig()
     taps: TapConfig = TapConfig()
+    reference_format: str = "mscip-csv"
 
+
+REFERENCE_FORMATS = ("mscip-csv", "mscip-bin")
+"""Formats the simulator writes the reference in (raw-formats.md)."""
 
 # ----------------------------------------------------------------------------- loading
 
@@ -227,6 +234,12 @@ def _check(cfg: SimConfig, source: str) -> SimConfig:
         raise ConfigError(source, "reference", "a reference device for kind rotated", "none")
     if cfg.kind != "rotated" and cfg.reference is not None:
         raise ConfigError(source, "reference", f"no reference for kind {cfg.kind}", "one")
+    if cfg.reference_format not in REFERENCE_FORMATS:
+        raise ConfigError(source, "reference_format", "one of " + ", ".join(REFERENCE_FORMATS),
+                          repr(cfg.reference_format))
+    if cfg.reference is None and cfg.reference_format != REFERENCE_FORMATS[0]:
+        raise ConfigError(source, "reference_format", f"{REFERENCE_FORMATS[0]} (the default) for a "
+                          f"campaign without a reference (kind {cfg.kind})", repr(cfg.reference_format))
     if not cfg.duts:
         raise ConfigError(source, "duts", "at least one device", "none")
     if len({d.id for d in cfg.duts}) != len(cfg.duts):
@@ -291,8 +304,18 @@ def load_config(name_or_path: str | Path, overrides: dict[str, Any] | None = Non
     return _check(cfg, source)
 
 
+def load_config_from(cfg: SimConfig, overrides: dict[str, Any], source: str = "<config>") -> SimConfig:
+    """``cfg`` with ``overrides`` merged over its keys, checked like :func:`load_config`."""
+    data = deep_merge(config_to_dict(cfg), overrides)
+    return _check(from_plain(data, SimConfig, source), source)
+
+
 def config_to_dict(cfg: SimConfig) -> dict[str, Any]:
-    """Plain (JSON/YAML-ready) form of a configuration."""
+    """Plain (JSON/YAML-ready) form of a configuration.
+
+    ``reference_format`` is left out at its default, so that campaigns written before the key
+    existed keep the same bytes.
+    """
 
     def plain(v: Any) -> Any:
         if isinstance(v, tuple | list):
@@ -301,4 +324,7 @@ def config_to_dict(cfg: SimConfig) -> dict[str, Any]:
             return {k: plain(x) for k, x in v.items()}
         return v
 
-    return plain(dataclasses.asdict(cfg))
+    out = plain(dataclasses.asdict(cfg))
+    if out["reference_format"] == REFERENCE_FORMATS[0]:
+        del out["reference_format"]
+    return out

@@ -11,14 +11,21 @@ import numpy as np
 
 from ofbe_data.core.atomic import write_bytes_atomic
 from ofbe_data.core.precision import round_floats
+from ofbe_data.io.formats.mscip_bin import write_mscip_bin
 from ofbe_data.io.formats.mscip_csv import write_mscip_csv
 from ofbe_data.io.formats.ofbe_logger import write_ofbe_logger
+from ofbe_data.io.gravity import G0
 from ofbe_data.io.manifest import (
     write_manifest,
 )
 from ofbe_data.simulator.campaign import _GARBLE_BYTES, TRUTH_DECIMALS, SessionData
 
 # --------------------------------------------------------------------------- writing
+
+
+def fixed(values: np.ndarray, decimals: int) -> np.ndarray:
+    """``values`` rounded to ``decimals`` decimals as the vendor-style CSV writes them (same shape)."""
+    return np.rint(np.asarray(values, dtype=np.float64) * 10.0**decimals) / 10.0**decimals
 
 
 class Garbler:
@@ -103,6 +110,11 @@ def write_session(data: SessionData, folder: Path, truth_path: Path, garble_rate
                 f.truth["samples_lost_to_garbling"] = garbler.samples_lost
                 f.truth["lines_written"] = f.truth["samples_written"] - garbler.samples_lost \
                     + garbler.lines
+            elif data.manifest.devices[dev].format == "mscip-bin":
+                r = data.ref_files[rec.id]
+                # the values the CSV would hold (its decimals), as float32 in the byte stream
+                write_mscip_bin(path, fixed(r.t_s, 6), fixed(r.acc_g, 5) * G0, r.start_utc,
+                                gyro=fixed(r.gyro_dps, 4), temperature=fixed(r.temperature_c, 1))
             else:
                 r = data.ref_files[rec.id]
                 write_mscip_csv(path, r.t_s, r.acc_g, r.gyro_dps, r.temperature_c,

@@ -67,4 +67,4 @@ def read_device_file(path: str | Path, device: DeviceSpec) -> Recording:
 
 
 # the format modules register themselves on import
-from ofbe_data.io.formats import generic_csv, mscip_csv, ofbe_logger  # noqa: E402, F401
+from ofbe_data.io.formats import generic_csv, mscip_bin, mscip_csv, ofbe_logger  # noqa: E402, F401
