@@ -44,6 +44,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--min-samples-from", metavar="REPORT",
                    help="take label.min_samples from a convergence report (reports/convergence/"
                         "convergence.json) unless --params or --min-samples set it")
+    p.add_argument("--plots", action="store_true",
+                   help="also draw each labelled session: <out>/<campaign>/<session>.png with ‖f‖ and the "
+                        "three axes over time and every labelled interval (pose) shaded and numbered")
     p.add_argument("--quiet", action="store_true", help="no progress bar, no summary")
     return p
 
@@ -76,12 +79,18 @@ def main(argv: Sequence[str] | None = None) -> int:
                  if o.removed else "")
         print(f"ofbe-label: error: {o.error}{stale}", file=sys.stderr)
     done = [o.labels for o in outcomes if o.labels is not None]
+    if args.plots:
+        from ofbe_data.reports.session_plot import plot_session
+
+        for s in done:
+            plot_session(s, Path(args.out) / s.manifest.campaign / f"{s.manifest.session}.png")
     rows = sum(len(s.rows) for s in done)
     rejected = [r for s in done for r in s.rejections]
     if not args.quiet:
         warnings = sum(len(s.warnings) for s in done)
         print(f"ofbe-label: {len(done)} sessions labelled, {len(failed)} failed; {rows} recordings "
-              f"labelled, {len(rejected)} rejected, {warnings} warnings -> {args.out}", file=sys.stderr)
+              f"labelled, {len(rejected)} rejected, {warnings} warnings -> {args.out}"
+              + (f" (with {len(done)} session figures)" if args.plots else ""), file=sys.stderr)
     if failed:
         return 1
     if rows == 0:
