@@ -4,6 +4,9 @@ The session manifest (:mod:`~ofbe_data.io.manifest`), typed recordings
 (:mod:`~ofbe_data.io.recording`), the device formats (:mod:`~ofbe_data.io.formats`, one
 module per format behind a registry), YAML without surprises (:mod:`~ofbe_data.io.yamlio`)
 and typed configuration sections (:mod:`~ofbe_data.io.typedconfig`,
-:mod:`~ofbe_data.io.pipeline_params`), and local gravity (:mod:`~ofbe_data.io.gravity`). It
-may import :mod:`ofbe_data.core` only.
+:mod:`~ofbe_data.io.pipeline_params`), local gravity (:mod:`~ofbe_data.io.gravity`), how a device file is read
+(:mod:`~ofbe_data.io.device_options`), and the detection of an unknown file's layout and
+units for ``ofbe-session init`` (:mod:`~ofbe_data.io.detect`, with
+:mod:`~ofbe_data.io.detect_layout` and :mod:`~ofbe_data.io.detect_units`). It may import
+:mod:`ofbe_data.core` only.
 """

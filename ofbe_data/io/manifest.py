@@ -19,6 +19,15 @@ import yaml
 
 from ofbe_data.core.atomic import write_bytes_atomic
 from ofbe_data.core.errors import ManifestError
+from ofbe_data.io.device_options import (
+    ACC_UNITS,
+    COLUMN_KEYS,
+    TEMPERATURE_UNITS,
+    TIME_UNITS,
+    WHITESPACE,
+    BinOptions,
+    CsvMapping,
+)
 from ofbe_data.io.gravity import local_gravity
 from ofbe_data.io.yamlio import FieldPath, YamlDocument, YamlProblem, format_field, read_yaml
 
@@ -27,12 +36,6 @@ MANIFEST_NAME = "session.yaml"
 KINDS = ("gravity-aligned", "rotated", "multi-position")
 ROLES = ("dut", "reference")
 FORMATS = ("ofbe-logger", "mscip-csv", "mscip-bin", "csv")
-TIME_UNITS = ("s", "ms", "us", "ns", "samples")
-ACC_UNITS = ("m/s2", "g", "mg", "counts")
-TEMPERATURE_UNITS = ("C", "K", "F")
-WHITESPACE = "whitespace"
-"""``delimiter`` value for runs of spaces and/or tabs."""
-COLUMN_KEYS = ("t", "ax", "ay", "az", "temperature")
 ID_PATTERN = re.compile(r"^[A-Za-z0-9._-]+$")
 """Campaign, session, device and recording ids."""
 
@@ -60,115 +63,6 @@ class Site:
         if self.gravity_mps2 is not None:
             return {"gravity_mps2": self.gravity_mps2}
         return {"latitude_deg": float(self.latitude_deg or 0.0), "height_m": float(self.height_m or 0.0)}
-
-
-@dataclass(frozen=True)
-class CsvMapping:
-    """How to read a generic ``csv`` device file (raw-formats.md, "Generic csv").
-
-    Attributes
-    ----------
-    columns
-        Column for ``ax``, ``ay``, ``az`` and optionally ``t`` and ``temperature``: names,
-        or 0-based indices when ``header`` is false.
-    time_unit
-        ``s``, ``ms``, ``us``, ``ns`` or ``samples`` (an index; t = index / rate).
-    acc_unit
-        ``m/s2``, ``g``, ``mg`` or ``counts``.
-    lsb_per_g
-        Counts per g per axis (x, y, z); required when ``acc_unit`` is ``counts``.
-    skip_rows
-        Lines to skip before the column line (or the first data line without a header).
-    delimiter
-        Field delimiter, one character, or ``whitespace``.
-    header
-        Whether a column-name line follows the skipped rows.
-    comment
-        Lines starting with this string are skipped anywhere (None: no comments).
-    sample_rate_hz
-        Nominal rate, Hz: the time base for ``samples`` or a missing ``t``; otherwise
-        compared with the measured rate (a warning beyond 2 %).
-    zero_counts
-        Counts at zero specific force per axis (counts only; 32768 for unsigned
-        offset-binary ADCs).
-    temperature_unit
-        ``C``, ``K`` or ``F``.
-    range_g
-        Full-scale range, g: readings at ±range_g are saturated (None: found from the data).
-    """
-
-    columns: dict[str, str | int]
-    time_unit: str = "s"
-    acc_unit: str = "m/s2"
-    lsb_per_g: tuple[float, float, float] | float | None = None
-    skip_rows: int = 0
-    delimiter: str = ","
-    header: bool = True
-    comment: str | None = None
-    sample_rate_hz: float | None = None
-    zero_counts: tuple[float, float, float] | float = 0.0
-    temperature_unit: str = "C"
-    range_g: float | None = None
-
-    def lsb_axes(self) -> np.ndarray:
-        """Counts per g per axis, (3,) (ones when not counts)."""
-        if self.lsb_per_g is None:
-            return np.ones(3)
-        return np.broadcast_to(np.asarray(self.lsb_per_g, dtype=np.float64), (3,)).copy()
-
-    def zero_axes(self) -> np.ndarray:
-        """Counts at zero specific force per axis, (3,)."""
-        return np.broadcast_to(np.asarray(self.zero_counts, dtype=np.float64), (3,)).copy()
-
-    def to_dict(self) -> dict[str, Any]:
-        """The manifest keys (defaults left out)."""
-        out: dict[str, Any] = {"columns": dict(self.columns)}
-        if not self.header:
-            out["header"] = False
-        if self.skip_rows:
-            out["skip_rows"] = self.skip_rows
-        if self.delimiter != ",":
-            out["delimiter"] = self.delimiter
-        if self.comment is not None:
-            out["comment"] = self.comment
-        out["time_unit"] = self.time_unit
-        if self.sample_rate_hz is not None:
-            out["sample_rate_hz"] = self.sample_rate_hz
-        out["acc_unit"] = self.acc_unit
-        for key in ("lsb_per_g", "zero_counts"):
-            value = getattr(self, key)
-            if value is None or (key == "zero_counts" and not np.any(self.zero_axes())):
-                continue
-            out[key] = [float(x) for x in value] if isinstance(value, tuple) else float(value)
-        if "temperature" in self.columns and self.temperature_unit != "C":
-            out["temperature_unit"] = self.temperature_unit
-        if self.range_g is not None:
-            out["range_g"] = self.range_g
-        return out
-
-
-@dataclass(frozen=True)
-class BinOptions:
-    """Options of an ``mscip-bin`` device entry (raw-formats.md, "mscip-bin").
-
-    Attributes
-    ----------
-    sample_rate_hz
-        Time base when the stream has no time sub-packets, Hz (None: from the stream).
-    acc_unit
-        Unit of the accelerometer sub-packet: ``g`` (default), ``mg`` or ``m/s2``.
-    """
-
-    sample_rate_hz: float | None = None
-    acc_unit: str = "g"
-
-    def to_dict(self) -> dict[str, Any]:
-        out: dict[str, Any] = {}
-        if self.sample_rate_hz is not None:
-            out["sample_rate_hz"] = self.sample_rate_hz
-        if self.acc_unit != "g":
-            out["acc_unit"] = self.acc_unit
-        return out
 
 
 @dataclass(frozen=True)
