@@ -67,6 +67,7 @@ LABEL_COLUMN_DECIMALS: dict[str, int] = {
     "roll_deg": ANGLE_DECIMALS, "pitch_deg": ANGLE_DECIMALS,
     "sync_offset_s": TIME_DECIMALS, "sync_drift_ppm": PPM_DECIMALS,
     "sync_residual_s": 12, "segment_start_s": TIME_DECIMALS, "segment_end_s": TIME_DECIMALS,
+    **{f"scale_{a}": UNIT_DECIMALS for a in "xyz"}, "temperature_c": 6,
 }
 #: Label columns rounded to :data:`SIGNIFICANT_DIGITS` instead.
 LABEL_SIGNIFICANT = frozenset({"fit_condition"})

@@ -54,8 +54,8 @@ from ofbe_data.labelling.checks import (
     rate_step,
 )
 from ofbe_data.labelling.convergence import PAPER_THRESHOLD, PAPER_WINDOW, convergence_index
-from ofbe_data.labelling.multiposition import apparent_biases, fit_poses
 from ofbe_data.labelling.orientation import apparent_bias, nearest_axis, rodrigues_label, roll_pitch
+from ofbe_data.labelling.poses import PoseParams
 from ofbe_data.labelling.stationarity import StaticParams, check_static, longest_run
 from ofbe_data.labelling.sync import SyncError, SyncParams, synchronise, tap_signals
 
@@ -92,7 +92,9 @@ class LabelParams:
     convergence_window, convergence_threshold
         The paper's convergence criterion (steps, m/s²).
     multi_position_model
-        ``offset`` or ``scale-offset`` (:func:`ofbe_data.labelling.multiposition.fit_poses`).
+        ``auto`` (``scale-offset`` with at least ``poses.scale_min_poses`` distinct pose
+        directions, ``offset`` below: methods.md §8), ``offset`` or ``scale-offset``
+        (:func:`ofbe_data.labelling.multiposition.fit_poses`).
     multi_position_max_condition
         Largest condition number of a session's pose fit (good pose sets give 1–2, nearly
         coplanar ones thousands).
@@ -113,6 +115,8 @@ class LabelParams:
     max_mount_error_deg
         Largest angle between a DUT's measured gravity direction and the one its declared
         ``reference_to_sensor`` predicts (rotated sessions); beyond it ``mount-mismatch``.
+    poses
+        The pose detector of multi-position sessions (:mod:`ofbe_data.labelling.poses`).
     """
 
     min_samples: int = 4500
@@ -120,7 +124,7 @@ class LabelParams:
     max_skipped_fraction: float = 0.01
     convergence_window: int = PAPER_WINDOW
     convergence_threshold: float = PAPER_THRESHOLD
-    multi_position_model: str = "offset"
+    multi_position_model: str = "auto"
     multi_position_max_condition: float = 1000.0
     static: StaticParams = field(default_factory=StaticParams)
     sync: SyncParams = field(default_factory=SyncParams)
@@ -129,6 +133,7 @@ class LabelParams:
     max_level_tilt_deg: float = MAX_LEVEL_TILT_DEG
     warn_level_tilt_deg: float = WARN_LEVEL_TILT_DEG
     max_mount_error_deg: float = MAX_MOUNT_ERROR_DEG
+    poses: PoseParams = field(default_factory=PoseParams)
 
 
 def label_params_from(data: dict[str, Any] | None, source: str | Path = "<parameters>") -> LabelParams:
@@ -147,8 +152,8 @@ def label_params_from(data: dict[str, Any] | None, source: str | Path = "<parame
     for key in ("max_norm_deviation", "max_level_tilt_deg", "warn_level_tilt_deg", "max_mount_error_deg"):
         if not getattr(params, key) > 0:
             raise ConfigError(source, f"label.{key}", "a number > 0", str(getattr(params, key)))
-    if params.multi_position_model not in ("offset", "scale-offset"):
-        raise ConfigError(source, "label.multi_position_model", "offset or scale-offset",
+    if params.multi_position_model not in ("auto", "offset", "scale-offset"):
+        raise ConfigError(source, "label.multi_position_model", "auto, offset or scale-offset",
                           repr(params.multi_position_model))
     return params
 
@@ -247,14 +252,11 @@ def _own_segment(rec: Recording, taps: np.ndarray, params: LabelParams) -> tuple
     return _Segment(a, b, static_checked=True), False
 
 
-def _quality(rec: Recording, seg: _Segment, params: LabelParams, g: float, min_samples: int | None = None,
-             ) -> tuple[str, str] | None:
-    """First problem that forbids a label on this segment, as (reason, detail).
-
-    ``g`` is the local gravity (for the plausibility of the mean); ``min_samples`` defaults
-    to ``params.min_samples`` (the DUT's rule; a reference only needs enough samples for a
-    mean)."""
-    need = params.min_samples if min_samples is None else min_samples
+def _file_problem(rec: Recording, params: LabelParams, g: float) -> tuple[str, str] | None:
+    """What forbids any label from a whole file, as (reason, detail): too many garbled lines,
+    an implausible sample rate, or readings whose typical norm is no resting norm (checked
+    before the static detector, whose absolute ceiling misfires on readings in the wrong
+    unit)."""
     d = rec.diagnostics
     skipped = len(d.skipped)
     if d.lines_read and skipped / d.lines_read > params.max_skipped_fraction:
@@ -263,10 +265,23 @@ def _quality(rec: Recording, seg: _Segment, params: LabelParams, g: float, min_s
     rate = rate_problem(rec.fs_hz, rec.nominal_rate_hz)
     if rate is not None and rate[1]:
         return IMPLAUSIBLE_RATE, rate[0]
-    # before the static detector, whose absolute ceiling misfires on readings in the wrong unit
     norm = norm_problem(_typical_reading(rec.acc), g, params.max_norm_deviation)
     if norm is not None:
         return IMPLAUSIBLE_NORM, norm
+    return None
+
+
+def _quality(rec: Recording, seg: _Segment, params: LabelParams, g: float, min_samples: int | None = None,
+             ) -> tuple[str, str] | None:
+    """First problem that forbids a label on this segment, as (reason, detail).
+
+    ``g`` is the local gravity (for the plausibility of the mean); ``min_samples`` defaults
+    to ``params.min_samples`` (the DUT's rule; a reference only needs enough samples for a
+    mean)."""
+    need = params.min_samples if min_samples is None else min_samples
+    bad = _file_problem(rec, params, g)
+    if bad is not None:
+        return bad
     if seg.problem:
         return NO_SEGMENT, seg.problem
     sat = int(rec.saturated[seg.start:seg.stop].sum())
@@ -477,30 +492,6 @@ def _label_level(out: SessionLabels, row: dict[str, Any], params: LabelParams) -
     out.rows.append(row)
 
 
-def _label_multi_position(out: SessionLabels, rows: list[dict[str, Any]], params: LabelParams) -> None:
-    """Norm-constrained fit per device over the session's poses; labels every pose."""
-    m = out.manifest
-    for dev in m.duts:
-        mine = [r for r in rows if r["device"] == dev.id]
-        if not mine:
-            continue
-        means = np.array([r["_mean"] for r in mine])
-        fit = fit_poses(means, m.g_local, params.multi_position_model,
-                        params.multi_position_max_condition)
-        if not fit.determined:
-            for r in mine:
-                out.rejections.append(Rejection(r["recording"], dev.id, UNDETERMINED,
-                                                f"the session's poses do not determine the offset: "
-                                                f"{fit.reason}"))
-            continue
-        biases = apparent_biases(means, fit, m.g_local)
-        for r, b, u in zip(mine, biases, fit.directions, strict=True):
-            _finish_row(r, b, u, "multi-position")
-            r.update({"offset_x": float(fit.offset[0]), "offset_y": float(fit.offset[1]),
-                      "offset_z": float(fit.offset[2]), "fit_condition": float(fit.condition)})
-            out.rows.append(r)
-
-
 def label_session(folder: str | Path, params: LabelParams = LabelParams(), *,
                   keep_segments: bool = False) -> SessionLabels:
     """Label every (recording, DUT) of one session folder.
@@ -532,6 +523,7 @@ def label_session(folder: str | Path, params: LabelParams = LabelParams(), *,
     m = load_manifest(folder)
     out = SessionLabels(m)
     out.files["session.yaml"] = sha256_file(m.path)
+    read_all = []
     for rec_spec in m.recordings:
         recs: dict[str, Recording] = {}
         rels: dict[str, str] = {}
@@ -543,16 +535,15 @@ def label_session(folder: str | Path, params: LabelParams = LabelParams(), *,
             _rate_warnings(out, rec_spec.id, dev_id, recs[dev_id])
         if m.kind == "rotated":
             _label_rotated(out, rec_spec.id, recs, rels, params, keep_segments)
-            continue
-        rows = _label_alone(out, rec_spec.id, recs, rels, params, keep_segments)
-        if m.kind == "gravity-aligned":
-            for row in rows:
+        elif m.kind == "gravity-aligned":
+            for row in _label_alone(out, rec_spec.id, recs, rels, params, keep_segments):
                 _label_level(out, row, params)
         else:
-            out.rows.extend(rows)  # labelled once all poses are in
+            read_all.append((rec_spec.id, recs, rels))  # poses are found over all recordings
     if m.kind == "multi-position":
-        pending, out.rows = out.rows, []
-        _label_multi_position(out, pending, params)
+        from ofbe_data.labelling.multi_labels import label_multi_position
+
+        label_multi_position(out, read_all, params, keep_segments)
     return out
 
 

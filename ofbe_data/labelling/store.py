@@ -47,6 +47,8 @@ LABEL_SCHEMA = pa.schema([
     ("std_x", pa.float64()), ("std_y", pa.float64()), ("std_z", pa.float64()),
     ("skipped_lines", pa.int64()), ("missing_samples", pa.int64()), ("fit_condition", pa.float64()),
     ("pose", pa.int64()), ("temperature_c", pa.float64()),
+    ("fit_model", pa.string()),
+    ("scale_x", pa.float64()), ("scale_y", pa.float64()), ("scale_z", pa.float64()),
 ])
 
 

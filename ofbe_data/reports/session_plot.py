@@ -62,7 +62,7 @@ def plot_session(labels: SessionLabels, path: str | Path) -> Path:
     """
     m = labels.manifest
     pairs = [(r.id, d.id) for r in m.recordings for d in m.duts if d.id in r.files][:MAX_FILES]
-    fig, axes = new_figure(2 * len(pairs), 1, width_in=7.0, height_in=2.6 * len(pairs), squeeze=False,
+    fig, axes = new_figure(2 * len(pairs), 1, width_in=8.0, height_in=0.6 + 3.2 * len(pairs), squeeze=False,
                            sharex=False)
     for k, (rec_id, dev_id) in enumerate(pairs):
         ax_norm, ax_xyz = axes[2 * k, 0], axes[2 * k + 1, 0]
@@ -70,7 +70,7 @@ def plot_session(labels: SessionLabels, path: str | Path) -> Path:
                       key=lambda r: r.get("pose", 0))
         reasons = [f"{j.reason}" + (f" ({j.detail[:60]}…)" if len(j.detail) > 60 else f" ({j.detail})")
                    for j in labels.rejections if j.recording == rec_id and j.device == dev_id]
-        ax_norm.set_title(_title(rec_id, dev_id, rows, reasons), loc="left")
+        ax_norm.set_title(_title(rec_id, dev_id, rows, reasons), loc="left", pad=16)
         try:
             rec = read_device_file(m.file_path(next(r for r in m.recordings if r.id == rec_id), dev_id),
                                    m.devices[dev_id])
@@ -81,7 +81,7 @@ def plot_session(labels: SessionLabels, path: str | Path) -> Path:
         s = _decimate(rec.n)
         t = rec.t[s] - t0
         ax_norm.plot(t, np.sqrt(np.sum(rec.acc[s] ** 2, axis=1)), color="0.2", lw=0.7)
-        ax_norm.axhline(m.g_local, color="0.5", ls="--", lw=0.8, label=f"g_local = {m.g_local:.4f} m/s²")
+        ax_norm.axhline(m.g_local, color="0.5", ls="--", lw=0.8, label=f"g_local\n{m.g_local:.4f} m/s²")
         for i in range(3):
             ax_xyz.plot(t, rec.acc[s, i], color=AXIS_COLOURS[i], lw=0.7, label="xyz"[i])
         for r in rows:
@@ -93,9 +93,8 @@ def plot_session(labels: SessionLabels, path: str | Path) -> Path:
         ax_norm.set_ylim(m.g_local - NORM_SPAN, m.g_local + NORM_SPAN)  # motion shows as clipped spikes
         ax_norm.set_ylabel("‖f‖ (m/s²)")
         ax_xyz.set_ylabel("f (m/s²)")
-        ax_xyz.set_xlabel("time from the first sample (s)")
-        ax_norm.legend(loc="lower right")
-        ax_xyz.legend(loc="center right", ncols=3)
-    fig.suptitle(f"{m.campaign} / {m.session} ({m.kind}); shaded: the labelled intervals, numbered by pose",
-                 x=0.01, ha="left", fontsize=11)
+        ax_xyz.set_xlabel("time from the first sample (s); shaded: labelled intervals, numbered by pose")
+        ax_norm.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0))
+        ax_xyz.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    fig.suptitle(f"{m.campaign} / {m.session} ({m.kind})", x=0.01, ha="left", fontsize=12)
     return save_png(fig, path)

@@ -576,10 +576,11 @@ def test_counts_beyond_the_converter_range_are_skipped_not_saturated(tmp_path, c
     assert (len(labels), rejected) == (4, [])
 
 
-def test_saturated_pose_of_a_multi_position_session_is_rejected_alone(tmp_path, capsys):
+def test_a_saturated_sample_in_a_multi_position_recording_is_in_no_pose(tmp_path, capsys):
     session = _copy(tmp_path, MP)
     path = session / "rec-01/sparkfun-1.csv"
-    mid = read_ofbe_logger(path).n // 2
+    rec = read_ofbe_logger(path)
+    mid = rec.n // 2
 
     def saturate(counts: np.ndarray) -> np.ndarray:
         counts[mid, 0] = 4095
@@ -587,10 +588,14 @@ def test_saturated_pose_of_a_multi_position_session_is_rejected_alone(tmp_path, 
 
     _rewrite_logger(path, saturate)
     labels, rejected = _label_ok(capsys, tmp_path, session)
-    assert rejected == [_rejection(
-        "rec-01", "sparkfun-1", "saturated",
-        f"1 saturated samples in the stationary segment (first at line {DATA_LINE + mid})")]
-    assert _ids(labels) == [(f"rec-0{i}", "sparkfun-1") for i in range(2, 7)]
+    # the pose detector sees the spike as handling: the still run is split around it, and no
+    # labelled pose holds the saturated sample (a pose holding one would be rejected)
+    assert rejected == []
+    assert sorted(set(_ids(labels))) == [(f"rec-0{i}", "sparkfun-1") for i in range(1, 7)]
+    spike_t = rec.t[mid]
+    first = labels[labels["recording"] == "rec-01"]
+    assert not ((first["segment_start_s"] <= spike_t) & (first["segment_end_s"] >= spike_t)).any()
+    assert ((first["segment_end_s"] < spike_t).any() and (first["segment_start_s"] > spike_t).any())
     assert set(labels["label_method"]) == {"multi-position"}
 
 

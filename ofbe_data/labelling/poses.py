@@ -1,0 +1,478 @@
+"""The static poses inside one continuous multi-position recording (methods.md §Labelling 8).
+
+A multi-position calibration is usually one file: static poses separated by handling. The
+poses are found as imu_tk (Tedaldi et al., ICRA 2014) finds them, its threshold taken from
+the data:
+
+1. **Moving statistics.** Over every window of ``window_s``: the mean, and the variance of
+   each axis summed over the three axes (the trace of the covariance). The trace does not
+   depend on how the sensor is oriented, so a motion counts the same along any axis (the
+   largest axis' variance would not), and it sees a rotation that keeps |f| ≈ g, which the
+   variance of the norm |f| would not.
+2. **Noise floor.** The median moving variance over the first ``init_quiet_s`` when that
+   stretch is quiet (imu_tk's initial rest: its median at most ``init_accept_ratio`` times the
+   quietest stretch's), otherwise over the quietest stretch of that length; then the median
+   over every window at most ``init_accept_ratio`` times that (one stretch scatters, and the
+   quietest of many is biased low).
+3. **Static intervals** for a threshold ``k · floor``. A window is quiet when its variance is
+   at most the threshold and its mean agrees with the means of the windows one window length
+   before and after it (:func:`quiet_windows`: slow motion moves the mean long before it
+   raises the variance). A sample is static when a quiet window holds it: imu_tk's
+   centred-window test with each run widened by half a window, so that a run ends where the
+   motion begins, and noise must push a whole window length of consecutive windows over the
+   threshold to split a pose. Each run loses ``margin_s`` at both ends; what remains must last
+   ``min_pose_s``.
+4. **Multiplier.** For each candidate ``k`` (imu_tk scans 2 … 10) the pose means are fitted
+   with the norm-constrained least squares of :mod:`ofbe_data.labelling.multiposition`; the
+   smallest ``k`` whose residual is tied with the smallest residual wins
+   (:func:`choose_multiplier`). A threshold that lets handling into a pose moves its mean off
+   |A⁻¹(m − b)| = g and raises the residual. A candidate with fewer poses than the fit needs,
+   or poses that do not determine it, is not eligible.
+
+Everything is plain numpy (cumulative sums, medians, means) and ``fit_poses``, whose start is
+rounded so that its result is the same on every machine: same input, same poses, same bytes.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields
+
+import numpy as np
+
+from ofbe_data.core.errors import ConfigError, OfbeError
+from ofbe_data.io.gravity import G0
+from ofbe_data.labelling.multiposition import MODELS, PoseFit, fit_poses, min_poses
+
+FLOOR_INITIAL = "initial quiet stretch"  #: ``floor_source``: the first ``init_quiet_s`` set the floor
+FLOOR_QUIETEST = "quietest part"  #: ``floor_source``: the quietest stretch set it
+AUTO = "auto"  #: ``PoseParams.model``: ``scale-offset`` where a candidate has poses enough
+MIN_WINDOW = 3  #: fewest samples in a moving window
+MG = G0 / 1000.0  #: 1 mg in m/s² (for messages)
+
+
+class PoseParamError(ConfigError, ValueError):
+    """A :class:`PoseParams` field is out of range (a :class:`ConfigError` and a ValueError)."""
+
+    def __init__(self, key: str, expected: str, found: object) -> None:
+        super().__init__("PoseParams", key, expected, repr(found))
+
+
+class NoPosesError(OfbeError, ValueError):
+    """No threshold multiplier yields static poses that the pose fit can use.
+
+    Attributes ``noise_floor_var`` ((m/s²)², NaN when not measured), ``floor_source``,
+    ``counts`` (multiplier → poses found) and ``needed`` (poses the fit needs) hold what the
+    message says.
+    """
+
+    def __init__(self, message: str, noise_floor_var: float, floor_source: str,
+                 counts: dict[float, int], needed: int) -> None:
+        super().__init__(message)
+        self.noise_floor_var = noise_floor_var
+        self.floor_source = floor_source
+        self.counts = counts
+        self.needed = needed
+
+
+@dataclass(frozen=True)
+class PoseParams:
+    """Parameters of the pose detector (a ``from_plain``-friendly record: numbers and a list).
+
+    Attributes
+    ----------
+    window_s
+        Moving window, s. Longer windows scatter less and see slower rotations (one at ω rad/s
+        adds about (g·ω·window_s)²/12 to the variance); the window does not shorten a pose
+        (step 3 of the module's description). 0.5 s is 25 samples at 50 Hz, enough that noise
+        alone does not split a pose at multiplier 2 (at 0.25 s it did, at 50 Hz); imu_tk uses
+        101 samples, 1 s at 100 Hz.
+    min_pose_s
+        Shortest pose kept, s, after the margins are trimmed (methods.md §8: 1 s).
+    margin_s
+        Trimmed from both ends of every static run, s. A device set down rings, and a hand
+        starts a rotation gently: the windows at a run's ends can hold a few tenths of a second
+        that differ from rest by less than the noise of a window mean. 0.25 s takes a quarter
+        of a 2-s pose and leaves its mean as exact as the noise allows.
+    multipliers
+        Candidate thresholds in units of the noise floor, strictly increasing (imu_tk: 2 … 10).
+    init_quiet_s
+        Length of the stretch that sets the noise floor, s.
+    init_accept_ratio
+        The initial stretch sets the floor when its median moving variance is at most this
+        many times the quietest stretch's; windows up to this many times the stretch's floor
+        then refine it.
+    drift_factor
+        Two windows one window apart disagree when their means differ by more than
+        sqrt(2 · drift_factor · threshold / window) (static: the difference scatters with
+        variance 2 · floor / window). With 4, noise alone exceeds it with probability 3e-5
+        at multiplier 2 (a χ² with 3 degrees of freedom above 24).
+    min_noise_mps2, max_noise_mps2
+        Bounds of the noise floor as a standard deviation per axis, m/s². Below 1e-4 (10 µg,
+        under any MEMS accelerometer's noise) the floor is raised to it, so that a noise-free
+        or coarsely quantised signal works; above 0.3 (30 mg, the stationarity check's ceiling)
+        even the quietest part moves, and there is no pose.
+    tie_sigmas
+        Residuals within this many standard errors (1/sqrt(2ν) relative, ν degrees of freedom)
+        of the smallest are tied; the smallest tied multiplier wins. Past the handling, a higher
+        threshold adds samples at the poses' edges and lowers the residual by noise alone; one
+        that lets handling in raises it far more.
+    model
+        Fit that scores a candidate: ``offset``, ``scale-offset`` or ``auto`` (``scale-offset``
+        from ``scale_min_poses`` poses, else ``offset``, as methods.md §8 fits sessions). Scale
+        errors of 1–3 % leave an offset-only fit 0.1–0.3 m/s² of residual that would hide what
+        the detection did.
+    scale_min_poses
+        Fewest poses for which ``auto`` scores with ``scale-offset`` (methods.md §8: 9).
+    max_condition
+        Largest condition number of an eligible candidate's fit (``fit_poses``' default:
+        degenerate pose sets only; the labeller judges a session's spread itself).
+    """
+
+    window_s: float = 0.5
+    min_pose_s: float = 1.0
+    margin_s: float = 0.25
+    multipliers: tuple[float, ...] = (2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0, 10.0)
+    init_quiet_s: float = 1.0
+    init_accept_ratio: float = 3.0
+    drift_factor: float = 4.0
+    min_noise_mps2: float = 1e-4
+    max_noise_mps2: float = 0.3
+    tie_sigmas: float = 2.0
+    model: str = AUTO
+    scale_min_poses: int = 9
+    max_condition: float = 1e6
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            if f.name not in ("multipliers", "model", "scale_min_poses"):
+                _check_number(f.name, getattr(self, f.name), f.name in _MAY_BE_ZERO)
+        _check_multipliers(self.multipliers)
+        if self.model not in (AUTO, *MODELS):
+            raise PoseParamError("model", " or ".join((AUTO, *MODELS)), self.model)
+        least = min_poses("scale-offset")
+        if not is_number(self.scale_min_poses) or int(self.scale_min_poses) != self.scale_min_poses \
+                or self.scale_min_poses < least:
+            raise PoseParamError("scale_min_poses", f"an integer ≥ {least}", self.scale_min_poses)
+        if not self.init_accept_ratio >= 1:
+            raise PoseParamError("init_accept_ratio", "a number ≥ 1", self.init_accept_ratio)
+        if not self.max_noise_mps2 > self.min_noise_mps2:
+            raise PoseParamError("max_noise_mps2", f"a number > min_noise_mps2 = {self.min_noise_mps2}",
+                                 self.max_noise_mps2)
+
+
+_MAY_BE_ZERO = frozenset({"margin_s", "tie_sigmas"})
+
+
+def is_number(value: object) -> bool:
+    return isinstance(value, int | float | np.floating | np.integer) and not isinstance(value, bool)
+
+
+def _check_number(key: str, value: object, may_be_zero: bool) -> None:
+    expected = "a finite number ≥ 0" if may_be_zero else "a finite number > 0"
+    if not is_number(value) or not math.isfinite(value) or value < 0 or (value == 0 and not may_be_zero):
+        raise PoseParamError(key, expected, value)
+
+
+def _check_multipliers(value: object) -> None:
+    expected = "a non-empty, strictly increasing list of finite numbers > 0"
+    if not isinstance(value, tuple) or not value:
+        raise PoseParamError("multipliers", expected, value)
+    for i, k in enumerate(value):
+        _check_number(f"multipliers[{i}]", k, False)
+    if any(b <= a for a, b in zip(value, value[1:], strict=False)):
+        raise PoseParamError("multipliers", expected, value)
+
+
+@dataclass(frozen=True)
+class Pose:
+    """One static pose of a recording.
+
+    Attributes
+    ----------
+    index
+        Position in time, from 0.
+    start, stop
+        Sample range [start, stop) of the recording, margins already trimmed.
+    start_s, end_s
+        s, the recording's times ``t[start]`` and ``t[stop − 1]`` (first and last sample).
+    mean
+        (3,) m/s², mean specific force over the interval (read-only; not compared).
+    """
+
+    index: int
+    start: int
+    stop: int
+    start_s: float
+    end_s: float
+    mean: np.ndarray = field(compare=False)
+
+
+def window_samples(fs_hz: float, params: PoseParams) -> int:
+    """Moving window in samples: ``round(window_s · fs_hz)``, at least :data:`MIN_WINDOW`."""
+    if not is_number(fs_hz) or not math.isfinite(fs_hz) or not fs_hz > 0:
+        raise ValueError(f"fs_hz must be a positive finite number, got {fs_hz!r}")
+    return max(MIN_WINDOW, int(round(params.window_s * fs_hz)))
+
+
+def check_acc(acc: np.ndarray) -> np.ndarray:
+    a = np.ascontiguousarray(acc, dtype=np.float64)  # one summation order whatever the layout
+    if a.ndim != 2 or a.shape[1] != 3:
+        raise ValueError(f"acc must have shape (N, 3), got {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise ValueError("acc must be finite")
+    return a
+
+
+def moving_stats(acc: np.ndarray, window: int) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and variance (summed over the axes) of ``acc`` in a sliding window.
+
+    Parameters
+    ----------
+    acc
+        (N, 3) m/s², specific force.
+    window
+        Window, samples (2 ≤ window ≤ N).
+
+    Returns
+    -------
+    means
+        (N − window + 1, 3) m/s²; row j covers samples j … j + window − 1.
+    var
+        (N − window + 1,) (m/s²)², the sum over the axes of the (ddof = 1) variances.
+    """
+    x = np.asarray(acc, dtype=np.float64)
+    centre = x.mean(axis=0)
+    x = x - centre  # keeps the cumulative sums well conditioned
+    zero = np.zeros((1, 3))
+    c1 = np.concatenate((zero, np.cumsum(x, axis=0)))
+    c2 = np.concatenate((zero, np.cumsum(x * x, axis=0)))
+    s1 = c1[window:] - c1[:-window]
+    s2 = c2[window:] - c2[:-window]
+    var = np.maximum((s2 - s1 * s1 / window) / (window - 1), 0.0).sum(axis=1)
+    return s1 / window + centre, var
+
+
+def noise_floor(var: np.ndarray, window: int, fs_hz: float, params: PoseParams) -> tuple[float, str]:
+    """Noise floor of a recording from its moving variance (step 2 of the module's description).
+
+    Parameters
+    ----------
+    var
+        (M,) (m/s²)², the moving variance (:func:`moving_stats`).
+    window
+        Its window, samples.
+    fs_hz
+        Sample rate, Hz.
+    params
+        Detector parameters.
+
+    Returns
+    -------
+    floor, source
+        (m/s²)², at least ``3 · min_noise_mps2²``; :data:`FLOOR_INITIAL` or :data:`FLOOR_QUIETEST`.
+    """
+    length = int(np.clip(round(params.init_quiet_s * fs_hz) - window + 1, 1, var.shape[0]))
+    sums = np.concatenate(([0.0], np.cumsum(var)))
+    quietest = int(np.argmin(sums[length:] - sums[:-length]))
+    lowest = 3.0 * params.min_noise_mps2**2
+    floor_quietest = max(float(np.median(var[quietest:quietest + length])), lowest)
+    floor_initial = float(np.median(var[:length]))
+    if floor_initial <= params.init_accept_ratio * floor_quietest:
+        first, source = max(floor_initial, lowest), FLOOR_INITIAL
+    else:
+        first, source = floor_quietest, FLOOR_QUIETEST
+    floor = float(np.median(var[var <= params.init_accept_ratio * first]))
+    return max(floor, lowest), source
+
+
+def quiet_windows(means: np.ndarray, var: np.ndarray, window: int, threshold_var: float,
+                  drift_factor: float) -> np.ndarray:
+    """Windows that are quiet: small variance, and a mean that agrees with the windows beside it.
+
+    Window j is quiet when its variance is at most ``threshold_var`` and its mean differs from
+    the means of windows j − window and j + window by at most sqrt(2 · drift_factor ·
+    threshold_var / window), where those exist and are not loud themselves (a loud window's
+    mean says nothing about drift).
+
+    Parameters
+    ----------
+    means, var
+        (M, 3) m/s² and (M,) (m/s²)², from :func:`moving_stats`.
+    window
+        Window, samples.
+    threshold_var
+        (m/s²)², the variance threshold.
+    drift_factor
+        See :class:`PoseParams`.
+
+    Returns
+    -------
+    np.ndarray
+        (M,) bool.
+    """
+    low = var <= threshold_var
+    d = means[window:] - means[:-window]
+    steady = (np.sum(d * d, axis=1) <= 2.0 * drift_factor * threshold_var / window) \
+        | ~low[window:] | ~low[:-window]  # entry j: window j + window against window j
+    pad = np.ones(min(window, var.shape[0]), dtype=bool)
+    after = np.concatenate((steady, pad))[:var.shape[0]]
+    before = np.concatenate((pad, steady))[:var.shape[0]]
+    return low & after & before
+
+
+def static_runs(quiet: np.ndarray, window: int) -> np.ndarray:
+    """Runs of samples that lie in at least one quiet window.
+
+    Parameters
+    ----------
+    quiet
+        (M,) bool; entry j covers samples j … j + window − 1 (M + window − 1 samples).
+    window
+        Window, samples.
+
+    Returns
+    -------
+    np.ndarray
+        (R, 2) int64, half-open sample ranges [start, stop), in time order.
+    """
+    m = quiet.shape[0]
+    cover = np.concatenate(([0], np.cumsum(quiet.astype(np.int64))))  # cover[j + 1]: quiet in 0 … j
+    i = np.arange(m + window - 1)
+    static = (cover[np.minimum(i, m - 1) + 1] - cover[np.maximum(i - window + 1, 0)]) > 0
+    edges = np.flatnonzero(np.diff(np.concatenate(([0], static.astype(np.int8), [0]))))
+    return edges.reshape(-1, 2).astype(np.int64)
+
+
+def _trim_runs(runs: np.ndarray, fs_hz: float, params: PoseParams) -> list[tuple[int, int]]:
+    """Trim ``margin_s`` from both ends of each (R, 2) run; keep those still ``min_pose_s`` long.
+
+    Returns half-open sample ranges, in the order given.
+    """
+    margin = int(round(params.margin_s * fs_hz))
+    shortest = max(1, int(math.ceil(params.min_pose_s * fs_hz - 1e-9)))
+    starts, stops = runs[:, 0] + margin, runs[:, 1] - margin
+    keep = stops - starts >= shortest
+    return [(int(a), int(b)) for a, b in zip(starts[keep], stops[keep], strict=True)]
+
+
+def intervals(means: np.ndarray, var: np.ndarray, window: int, threshold_var: float, fs_hz: float,
+               params: PoseParams) -> list[tuple[int, int]]:
+    quiet = quiet_windows(means, var, window, threshold_var, params.drift_factor)
+    return _trim_runs(static_runs(quiet, window), fs_hz, params)
+
+
+def detect_static(acc: np.ndarray, fs_hz: float, threshold_var: float,
+                  params: PoseParams = PoseParams()) -> list[tuple[int, int]]:
+    """Static intervals of a recording for one variance threshold (step 3 of the description).
+
+    Parameters
+    ----------
+    acc
+        (N, 3) m/s², specific force.
+    fs_hz
+        Sample rate, Hz.
+    threshold_var
+        (m/s²)², largest moving variance (summed over the axes) of a quiet window.
+    params
+        Detector parameters (window, drift factor, margin, shortest pose).
+
+    Returns
+    -------
+    list of (start, stop)
+        Half-open sample ranges in time order, margins trimmed, each at least ``min_pose_s``
+        long; empty when the recording is shorter than one window.
+
+    Raises
+    ------
+    ValueError
+        If ``acc`` is not a finite (N, 3) array, ``fs_hz`` not a positive finite number or
+        ``threshold_var`` not a finite number ≥ 0.
+    """
+    a = check_acc(acc)
+    window = window_samples(fs_hz, params)
+    if not is_number(threshold_var) or not math.isfinite(threshold_var) or threshold_var < 0:
+        raise ValueError(f"threshold_var must be a finite number ≥ 0, got {threshold_var!r}")
+    if a.shape[0] < window:
+        return []
+    means, var = moving_stats(a, window)
+    return intervals(means, var, window, float(threshold_var), fs_hz, params)
+
+
+def make_poses(t: np.ndarray, acc: np.ndarray, intervals: list[tuple[int, int]]) -> tuple[Pose, ...]:
+    """Poses from half-open intervals in time order: numbered, timed (``t``, s), and their mean
+    specific force (``acc``, (N, 3) m/s²)."""
+    out = []
+    for k, (a, b) in enumerate(intervals):
+        mean = acc[a:b].mean(axis=0)
+        mean.setflags(write=False)
+        out.append(Pose(k, a, b, float(t[a]), float(t[b - 1]), mean))
+    return tuple(out)
+
+
+def _scoring_model(n_poses: int, params: PoseParams) -> str:
+    """Fit model that scores a candidate with ``n_poses`` poses (``params.model``, or for
+    ``auto``: ``scale-offset`` from ``scale_min_poses`` poses on, else ``offset``)."""
+    if params.model != AUTO:
+        return params.model
+    return "scale-offset" if n_poses >= params.scale_min_poses else "offset"
+
+
+def score(means: np.ndarray, g_local: float, params: PoseParams) -> tuple[float, int, PoseFit | None]:
+    """Residual of the pose fit over a candidate's pose means, per degree of freedom.
+
+    Parameters
+    ----------
+    means
+        (K, 3) m/s², the candidate's pose means.
+    g_local
+        m/s², local gravity magnitude.
+    params
+        Detector parameters (model, largest condition number).
+
+    Returns
+    -------
+    residual, dof, fit
+        sqrt(Σ_k r_k² / ν) in m/s², with r_k = |A⁻¹(m_k − b)| − g and ν = K − P the degrees of
+        freedom the model's P unknowns leave (the RMS over the poses would favour a candidate
+        that lost poses); ν; the fit (None below the model's fewest poses). The residual is NaN
+        and ν 0 when the candidate has too few poses or the fit is not determined.
+    """
+    model = _scoring_model(means.shape[0], params)
+    k = means.shape[0]
+    if k < min_poses(model):
+        return math.nan, 0, None
+    fit = fit_poses(means, g_local, model, params.max_condition)
+    if not fit.determined:
+        return math.nan, 0, fit
+    dof = k - MODELS[model]
+    return fit.residual_rms * math.sqrt(k / dof), dof, fit
+
+
+def choose_multiplier(residuals: dict[float, float], dofs: dict[float, int],
+                      tie_sigmas: float) -> float | None:
+    """Smallest multiplier whose residual is tied with the smallest one.
+
+    A residual from ν degrees of freedom has a relative standard error of about 1/sqrt(2ν);
+    residuals up to ``tie_sigmas`` of the best candidate's standard errors above it are tied.
+
+    Parameters
+    ----------
+    residuals
+        Multiplier → residual, m/s² (NaN: not eligible).
+    dofs
+        Multiplier → degrees of freedom of its residual.
+    tie_sigmas
+        Width of a tie, in standard errors.
+
+    Returns
+    -------
+    float or None
+        None when no multiplier is eligible.
+    """
+    valid = {k: r for k, r in residuals.items() if math.isfinite(r)}
+    if not valid:
+        return None
+    best = min(valid, key=lambda k: (valid[k], k))
+    limit = valid[best] * (1.0 + tie_sigmas / math.sqrt(2.0 * dofs[best]))
+    return min(k for k, r in valid.items() if r <= limit)
