@@ -13,8 +13,9 @@
 
 Data flows one way, raw files → recordings → labels → windows/splits → datasets; the import
 rules are in docs/architecture.md and enforced by tests/test_architecture.py.
-``ofbe_data.load_dataset`` and ``ofbe_data.read_labels`` are imported on first use, so that
-``import ofbe_data`` stays light.
+``ofbe_data.load_dataset``, ``ofbe_data.read_labels`` and ``ofbe_data.find_calibration`` (the
+calibration in force for a device at a time, :mod:`ofbe_data.calibration.store`) are imported on
+first use, so that ``import ofbe_data`` stays light.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ from typing import Any
 
 __version__ = "0.1.0"
 
-__all__ = ["__version__", "load_dataset", "read_labels"]
+__all__ = ["__version__", "find_calibration", "load_dataset", "read_labels"]
 
 
 def __getattr__(name: str) -> Any:
@@ -31,6 +32,10 @@ def __getattr__(name: str) -> Any:
         from ofbe_data.dataset.reader import load_dataset
 
         return load_dataset
+    if name == "find_calibration":
+        from ofbe_data.calibration.store import find_calibration
+
+        return find_calibration
     if name == "read_labels":
         from ofbe_data.labelling.store import read_labels
 

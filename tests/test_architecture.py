@@ -20,10 +20,11 @@ DATA_RULES: dict[str, frozenset[str]] = {
     "labelling": frozenset({"core", "io", "labelling"}),
     "dataset": frozenset({"core", "io", "labelling", "dataset"}),
     "reports": frozenset({"core", "io", "labelling", "dataset", "reports"}),
-    "cli": frozenset({"core", "io", "simulator", "labelling", "dataset", "reports", "cli"}),
+    "calibration": frozenset({"core", "io", "labelling", "calibration"}),
+    "cli": frozenset({"core", "io", "simulator", "labelling", "dataset", "reports", "calibration", "cli"}),
 }
 #: Top-level modules of ofbe_data that are not in a wing, and what they may import.
-DATA_TOP = {"__init__": frozenset({"dataset", "labelling"})}
+DATA_TOP = {"__init__": frozenset({"dataset", "labelling", "calibration"})}
 MAX_LINES = 600
 
 

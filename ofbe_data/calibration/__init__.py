@@ -1,0 +1,17 @@
+"""Calibration results in the formats other tools load, and a store of them by device and time.
+
+- :mod:`~ofbe_data.calibration.results`: one result per (device, power cycle) of a labels
+  folder, or per estimate of an ``ofbe-predict`` JSON: the bias b (zero-g offset or apparent
+  bias) of ``f = A·u·g + b``, its std, where it came from and when it was recorded;
+- :mod:`~ofbe_data.calibration.noise`: the raw recordings behind the labels (start times,
+  stationary segments) and their Allan noise density for Kalibr;
+- :mod:`~ofbe_data.calibration.formats`: one small function per format that converts ofbe's
+  sign and unit convention, and the writers (imucal, Kalibr, ROS, GGIR, ofbe JSON);
+- :mod:`~ofbe_data.calibration.store`: ``DIR/<device>/<device>_<time>.<ending>`` and
+  :func:`~ofbe_data.calibration.store.find_calibration`.
+
+The command is ``ofbe-export`` (:mod:`ofbe_model.cli.export`, which adds the model formats).
+This package may import :mod:`ofbe_data.core`, :mod:`ofbe_data.io` and
+:mod:`ofbe_data.labelling` (label files, Allan deviation); never :mod:`ofbe_model`.
+docs/exports.md derives every convention.
+"""

@@ -1,0 +1,276 @@
+"""Calibration results in the files other tools load, each convention converted once.
+
+ofbe: ``f = A · u · g + b`` (output-referred, m/s², A = diag(scale)), corrected by
+``a = A⁻¹ (f − b)`` (:func:`ofbe_correct`). Per tool (derivations in docs/exports.md):
+
+- imucal (Ferraris): ``a = R_a⁻¹ K_a⁻¹ (f − b_a)`` → ``K_a = diag(scale)``, ``R_a = I``,
+  ``b_a = b`` in the raw unit m/s^2 (:func:`imucal_accelerometer`);
+- GGIR (``backup.cal.coef``): ``a_g = (f_g + offset) · scale`` in g →
+  ``offset = −b / g0``, ``scale = 1 / scale_ofbe`` (:func:`ggir_coefficients`);
+- ROS: the bias to subtract, m/s², and the ``linear_acceleration_covariance`` diagonal std²
+  (:func:`ros_bias_covariance`);
+- Kalibr: noise density and random walk only (no bias), see
+  :mod:`ofbe_data.calibration.noise`;
+- ofbe JSON ``ofbe-calibration/1``: b and its std as they are.
+
+Every writer returns the file's bytes (the command writes them atomically); every file
+says which kind of bias it carries (zero-g offset or apparent bias).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+from collections.abc import Sequence
+from datetime import UTC, datetime
+from typing import Any
+
+import numpy as np
+
+from ofbe_data import __version__
+from ofbe_data.calibration.noise import NoiseEstimate
+from ofbe_data.calibration.results import ZERO_G_OFFSET, CalibrationResult
+from ofbe_data.io.gravity import G0
+
+JSON_FORMAT = "ofbe-calibration/1"
+"""``format`` of the ofbe calibration JSON."""
+IMUCAL_FORMAT_VERSION = "2.0.0"
+"""``_format_version`` of imucal 2.x calibration files, as imucal itself writes it."""
+FORMAT_EXTENSIONS: dict[str, str] = {"imucal": "imucal.json", "kalibr": "kalibr.yaml", "ros": "ros.yaml",
+                                     "ggir": "ggir.csv", "json": "json"}
+"""File-name ending of each format (``<device>.pc<N>.<ending>``; in a store
+``<device>_<YYYYmmddTHHMMSS>.<ending>``)."""
+GGIR_COLUMNS = ("filename", "scale.x", "scale.y", "scale.z", "offset.x", "offset.y", "offset.z",
+                "temperature.offset.x", "temperature.offset.y", "temperature.offset.z", "meantempcal",
+                "use.temperature", "QCmessage", "device", "power_cycle", "bias_kind")
+"""Columns of the GGIR file: those GGIR's ``backup.cal.coef`` reader looks up by name (g.part1),
+then ofbe's own (GGIR ignores them)."""
+DEFAULT_FRAME_ID = "imu_link"
+"""ROS ``frame_id`` when none is given (REP 145's IMU frame)."""
+DEFAULT_ROSTOPIC = "/imu0"
+"""Kalibr ``rostopic`` when none is given."""
+
+
+# ----------------------------------------------------------------------------- conventions
+
+
+def ofbe_correct(raw: np.ndarray, bias: Sequence[float], scale: Sequence[float] = (1.0, 1.0, 1.0)
+                 ) -> np.ndarray:
+    """ofbe's correction of (N, 3) readings in m/s²: ``a = A⁻¹ (f − b)``, A = diag(scale)."""
+    return (np.asarray(raw, dtype=np.float64) - np.asarray(bias, dtype=np.float64)) / np.asarray(
+        scale, dtype=np.float64)
+
+
+def imucal_accelerometer(bias: Sequence[float], scale: Sequence[float] = (1.0, 1.0, 1.0)
+                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(K_a, R_a, b_a) of imucal's Ferraris model from ofbe's b and scale.
+
+    imucal corrects ``a = R_a⁻¹ K_a⁻¹ (f − b_a)`` (``FerrarisCalibrationInfo._calibrate_acc``):
+    the bias is subtracted in the raw unit before scaling, exactly ofbe's ``A⁻¹ (f − b)``
+    with ``K_a R_a = A``. ofbe's A is diagonal, so ``K_a = diag(scale)``, ``R_a = I``, and
+    ``b_a = b`` (m/s², the file's ``from_acc_unit``).
+    """
+    return np.diag(np.asarray(scale, dtype=np.float64)), np.eye(3), np.asarray(bias, dtype=np.float64)
+
+
+def ggir_coefficients(bias: Sequence[float], scale: Sequence[float] = (1.0, 1.0, 1.0), g0: float = G0
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """(scale, offset) of GGIR's calibration from ofbe's b (m/s²) and scale.
+
+    GGIR applies ``scale(x, center = -offset, scale = 1/scale)``, i.e.
+    ``a_g = (f_g + offset) · scale`` with readings in g (g.getmeta, g.calibrate). With
+    ``f_g = f / g0``: ``a / g0 = (f − b) / (g0 · s)`` holds for ``offset = −b / g0`` (g, the
+    opposite sign of ofbe's b) and ``scale = 1 / s``.
+    """
+    s = np.asarray(scale, dtype=np.float64)
+    return 1.0 / s, -np.asarray(bias, dtype=np.float64) / g0
+
+
+def ggir_apply(raw_g: np.ndarray, scale: Sequence[float], offset: Sequence[float]) -> np.ndarray:
+    """GGIR's correction of (N, 3) readings in g: ``(raw + offset) · scale`` (temperature unused)."""
+    return (np.asarray(raw_g, dtype=np.float64) + np.asarray(offset)) * np.asarray(scale)
+
+
+def ros_bias_covariance(bias: Sequence[float], std: Sequence[float] | None
+                        ) -> tuple[list[float], list[float]]:
+    """The bias to subtract (m/s²) and ``linear_acceleration_covariance`` (9 values, row-major).
+
+    sensor_msgs/Imu: the covariance is row-major about x, y, z; all zeros means "unknown".
+    The diagonal is std² in (m/s²)²; without a std the matrix is all zeros.
+    """
+    cov = [0.0] * 9
+    if std is not None:
+        for i, s in enumerate(std):
+            cov[4 * i] = float(s) ** 2
+    return [float(b) for b in bias], cov
+
+
+# ----------------------------------------------------------------------------- helpers
+
+
+def yaml_float(x: float) -> str:
+    """A float as YAML 1.1 reads it back bit for bit (PyYAML needs ``1.0e-05``, not ``1e-05``)."""
+    x = float(x)
+    if not math.isfinite(x):
+        raise ValueError(f"expected a finite number, found {x!r}")
+    text = repr(x)
+    if "e" in text:
+        mant, exp = text.split("e")
+        if "." not in mant:
+            mant += ".0"
+        if exp[0] not in "+-":
+            exp = "+" + exp
+        text = f"{mant}e{exp}"
+    return text
+
+
+def _utc(when: datetime | None) -> str | None:
+    if when is None:
+        return None
+    return when.astimezone(UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
+
+
+def _kind_words(r: CalibrationResult) -> str:
+    if r.bias_kind == ZERO_G_OFFSET:
+        return f"the zero-g offset b of the {r.method} fit"
+    return (f"the apparent bias (mean - g*u; {r.method}), mean of {r.n_rows} "
+            f"{'recording' if r.n_rows == 1 else 'recordings'}")
+
+
+def _sources(r: CalibrationResult) -> str:
+    return ", ".join(f"{s.path} (sha256 {s.sha256[:12]}...)" for s in r.sources)
+
+
+def _header(r: CalibrationResult, written: datetime, what: str) -> list[str]:
+    return [f"{what} written by ofbe {__version__} at {_utc(written)}",
+            f"device {r.device}, power cycle {r.power_cycle if r.power_cycle is not None else 'unknown'}",
+            f"bias_kind: {r.bias_kind} ({_kind_words(r)})",
+            f"source: {_sources(r)}",
+            f"time {_utc(r.time_utc)} ({r.time_source or 'unknown'})"]
+
+
+# ----------------------------------------------------------------------------- writers
+
+
+def imucal_file(r: CalibrationResult, written: datetime) -> bytes:
+    """An imucal ``FerrarisCalibrationInfo`` JSON (``_format_version`` 2.0.0), as imucal writes it.
+
+    Exactly the fields imucal's loader passes to the class (``load_calibration_info`` fails on
+    others); what ofbe knows beyond K_a, R_a, b_a is said in ``comment``.
+    """
+    k_a, r_a, b_a = imucal_accelerometer(r.bias, r.scale)
+    comment = (f"ofbe {__version__} export, {_utc(written)}: device {r.device}, power cycle "
+               f"{r.power_cycle if r.power_cycle is not None else 'unknown'}. bias_kind: {r.bias_kind}. "
+               f"b_a is {_kind_words(r)}, in m/s^2, subtracted before scaling. K_a: {r.scale_note}; "
+               "R_a identity (ofbe fits no misalignment of the sensor's own axes). Gyroscope: ofbe has "
+               "no gyroscope data; K_g and R_g are identity, K_ga and b_g zero (the gyroscope passes "
+               "unchanged). "
+               f"Source: {_sources(r)}. Time {_utc(r.time_utc)} ({r.time_source}).")
+    doc = {"acc_unit": "m/s^2", "gyr_unit": "deg/s", "from_acc_unit": "m/s^2", "from_gyr_unit": "deg/s",
+           "comment": comment, "K_a": k_a.tolist(), "R_a": r_a.tolist(), "b_a": b_a.tolist(),
+           "K_g": np.eye(3).tolist(), "R_g": np.eye(3).tolist(), "K_ga": np.zeros((3, 3)).tolist(),
+           "b_g": [0.0, 0.0, 0.0], "cal_type": "Ferraris", "_format_version": IMUCAL_FORMAT_VERSION}
+    return json.dumps(doc, indent=4, allow_nan=False).encode()
+
+
+def kalibr_file(r: CalibrationResult, noise: NoiseEstimate, written: datetime,
+                rostopic: str = DEFAULT_ROSTOPIC) -> bytes:
+    """Kalibr's ``imu.yaml`` (accelerometer part) from the Allan analysis of the segments.
+
+    Kalibr takes one value per quantity for all axes: the largest axis is written (the
+    per-axis values are in the comments). ``accelerometer_random_walk`` only when the
+    recordings show the +1/2 branch; ``gyroscope_*`` never (no gyroscope data).
+    """
+    n = noise.density
+    lines = [f"# {line}" for line in _header(r, written, "Kalibr IMU noise parameters (imu.yaml)")]
+    lines += [
+        f"# from the overlapping Allan deviation of {noise.n_segments} stationary segments "
+        f"({noise.total_s:.1f} s in all, shortest {noise.shortest_s:.1f} s, "
+        f"tau up to {noise.longest_tau_s:.3g} s)",
+        "# accelerometer_noise_density [m/s^2/sqrt(Hz)]: white-noise level N, ADEV(tau) = N/sqrt(tau) "
+        f"fitted on tau = {noise.fit_taus_s[0]:.3g}..{noise.fit_taus_s[1]:.3g} s",
+        "#   (= ADEV at tau = 1 s on that line); the largest axis of x, y, z = "
+        + ", ".join(f"{v:.4g}" for v in n)
+        + " (fit slopes " + ", ".join(f"{v:.2f}" for v in noise.fit_slope) + ")",
+        f"accelerometer_noise_density: {yaml_float(max(n))}",
+    ]
+    if noise.random_walk is not None:
+        lines += ["# accelerometer_random_walk [m/s^3/sqrt(Hz)]: largest axis of x, y, z = "
+                  + ", ".join(f"{v:.4g}" for v in noise.random_walk) + f"; {noise.random_walk_note}",
+                  f"accelerometer_random_walk: {yaml_float(max(noise.random_walk))}"]
+    else:
+        lines += [f"# accelerometer_random_walk: not measured: {noise.random_walk_note}.",
+                  "#   Kalibr requires it: take it from the datasheet or an Allan analysis of hours "
+                  "of static data."]
+    lines += ["# gyroscope_noise_density, gyroscope_random_walk: not written: ofbe has no gyroscope data.",
+              f"rostopic: {json.dumps(rostopic)}",
+              f"update_rate: {yaml_float(round(noise.fs_hz, 6))}  # Hz, measured sample rate"]
+    return ("\n".join(lines) + "\n").encode()
+
+
+def ros_file(r: CalibrationResult, written: datetime, frame_id: str = DEFAULT_FRAME_ID) -> bytes:
+    """YAML with the bias to subtract and the ``linear_acceleration_covariance`` of sensor_msgs/Imu."""
+    bias, cov = ros_bias_covariance(r.bias, r.std)
+    lines = [f"# {line}" for line in _header(r, written, "Accelerometer bias for ROS")]
+    lines += ["# linear_acceleration_bias [m/s^2, sensor frame]: subtract from sensor_msgs/Imu "
+              "linear_acceleration",
+              "# linear_acceleration_covariance [(m/s^2)^2]: row-major 3x3 about x, y, z, diagonal = std^2 "
+              "of the bias" + ("" if r.std is not None
+                               else "; all zeros: std unknown (sensor_msgs/Imu: covariance unknown)")]
+    if not r.scale_known:
+        lines.append(f"# {r.scale_note}; ROS corrects the bias only")
+    else:
+        lines.append("# " + r.scale_note + ": " + ", ".join(f"{s:.10g}" for s in r.scale)
+                     + "; a bias subtraction does not apply it: divide (f - b) by it")
+    lines += [f"device: {json.dumps(r.device)}",
+              f"power_cycle: {'null' if r.power_cycle is None else r.power_cycle}",
+              f"frame_id: {json.dumps(frame_id)}",
+              f"bias_kind: {json.dumps(r.bias_kind)}",
+              f"method: {json.dumps(r.method)}",
+              "linear_acceleration_bias:",
+              *(f"  {axis}: {yaml_float(v)}" for axis, v in zip("xyz", bias, strict=True)),
+              "linear_acceleration_covariance: [" + ", ".join(yaml_float(v) for v in cov) + "]"]
+    return ("\n".join(lines) + "\n").encode()
+
+
+def ggir_file(r: CalibrationResult, written: datetime, g0: float = G0) -> bytes:
+    """A ``backup.cal.coef`` CSV for GGIR, one row per raw file of the result.
+
+    GGIR looks a file's coefficients up by its ``filename``; rows for other recordings of
+    the same device and power cycle are copies with their file name.
+    """
+    scale, offset = ggir_coefficients(r.bias, r.scale, g0)
+    qc = (f"ofbe {__version__} export {_utc(written)}: bias_kind {r.bias_kind}, {_kind_words(r)}; "
+          f"offset = -b/g0 (g0 = {g0} m/s^2); {r.scale_note}; no temperature model")
+    buf = io.StringIO()
+    out = csv.writer(buf, lineterminator="\n")
+    out.writerow(GGIR_COLUMNS)
+    temp = "" if r.temperature_c is None else repr(float(r.temperature_c))
+    for name in r.raw_files or (r.stem,):
+        out.writerow([name, *(repr(float(v)) for v in scale), *(repr(float(v)) for v in offset),
+                      "0.0", "0.0", "0.0", temp, "FALSE", qc, r.device,
+                      "" if r.power_cycle is None else r.power_cycle, r.bias_kind])
+    return buf.getvalue().encode()
+
+
+def json_document(r: CalibrationResult, written: datetime) -> dict[str, Any]:
+    """The ofbe calibration JSON (``ofbe-calibration/1``) as a dict."""
+    return {
+        "format": JSON_FORMAT, "device": r.device, "power_cycle": r.power_cycle,
+        "bias_m_s2": list(r.bias), "bias_std_m_s2": None if r.std is None else list(r.std),
+        "bias_kind": r.bias_kind,
+        "convention": "f = A*u*g + b (output-referred, m/s^2, sensor frame); correct with a = A^-1 (f - b)",
+        "scale": list(r.scale), "scale_known": r.scale_known, "method": r.method, "model": r.model,
+        "n_rows": r.n_rows, "g_local_m_s2": r.g_local, "fs_hz": r.fs_hz, "temperature_c": r.temperature_c,
+        "recordings": list(r.recordings),
+        "source": {"files": [s.to_dict() for s in r.sources]},
+        "time_utc": _utc(r.time_utc), "time_source": r.time_source or None,
+        "written_utc": _utc(written), "ofbe_version": __version__,
+    }
+
+
+def json_file(r: CalibrationResult, written: datetime) -> bytes:
+    """The ofbe calibration JSON's bytes."""
+    return (json.dumps(json_document(r, written), indent=2, allow_nan=False) + "\n").encode()

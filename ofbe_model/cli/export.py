@@ -1,0 +1,354 @@
+"""``ofbe-export FORMAT SOURCE --out PATH [--store DIR]``: results in the files other tools load.
+
+Calibration formats (:mod:`ofbe_data.calibration`), from a labels folder
+(``processed/labels/<campaign>``), one ``<session>.parquet`` or the JSON ``ofbe-predict``
+prints, one file per device and power cycle (per estimate for predictions):
+
+- ``imucal``: imucal ``FerrarisCalibrationInfo`` JSON (gyroscope identity/zero);
+- ``kalibr``: Kalibr ``imu.yaml`` noise parameters from the Allan deviation of the labelled
+  stationary segments (needs ``--raw``, the campaign's raw folder);
+- ``ros``: YAML with the bias to subtract and ``linear_acceleration_covariance``;
+- ``ggir``: GGIR ``backup.cal.coef`` CSV (offsets in g, GGIR's sign);
+- ``json``: ofbe's own ``ofbe-calibration/1``.
+
+One result: ``--out`` is the file (or, an existing folder, the folder it goes in); several:
+``--out`` is a folder of ``<device>.pc<power_cycle>.<ending>``, built under a temporary name
+and renamed. ``--store DIR`` also files each result as
+``DIR/<device>/<device>_<YYYYmmddTHHMMSS>.<ending>`` (the recording's UTC time; see
+:func:`ofbe_data.find_calibration`). Nothing is written unless every file can be.
+
+Adding a format is one entry in :data:`FORMATS`: a :class:`Format` whose handler turns the
+parsed arguments into :class:`ExportFile` objects (its options, if any, go in
+:func:`build_parser`); writing, ``--force`` and ``--store`` are shared. The model formats
+(``tflite``, ``c-header``) are entries of the same kind whose handlers read a model as SOURCE.
+Exit status: 0 written, 1 bad input data, 2 usage (``ofbe_data.core.cli``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import sys
+import tempfile
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+
+import numpy as np
+
+from ofbe_data.calibration import formats as fmt
+from ofbe_data.calibration.noise import RawFiles, attach_raw_times, noise_of
+from ofbe_data.calibration.results import Collected, load_results
+from ofbe_data.calibration.store import CalibrationStoreError, store_path
+from ofbe_data.core.atomic import atomic_directory, write_bytes_atomic
+from ofbe_data.core.cli import EXIT_DATA, EXIT_OK, EXIT_USAGE, command, fail
+from ofbe_data.core.errors import OfbeError, OutputExistsError
+
+PROG = "ofbe-export"
+FILE_SUFFIXES = frozenset({".json", ".yaml", ".yml", ".csv", ".h", ".tflite"})
+"""Suffixes that make ``--out`` a file name (an error when there are several results)."""
+
+
+class ExportUsageError(OfbeError):
+    """The command line asks for something the format cannot do (exit status 2)."""
+
+
+@dataclass(frozen=True)
+class ExportFile:
+    """One file an export writes.
+
+    Attributes
+    ----------
+    name
+        Its name inside ``--out`` when that is a folder.
+    data
+        Its bytes.
+    device, when, store_format
+        Where ``--store`` files it (``store_format`` a key of
+        :data:`ofbe_data.calibration.formats.FORMAT_EXTENSIONS`); None: not filed.
+    """
+
+    name: str
+    data: bytes
+    device: str | None = None
+    when: datetime | None = None
+    store_format: str | None = None
+
+
+@dataclass(frozen=True)
+class Format:
+    """An export format: what it makes (``help``) and how (``handler``)."""
+
+    handler: Callable[[argparse.Namespace], list[ExportFile]]
+    help: str
+
+
+def written_time() -> datetime:
+    """Now, UTC, whole seconds (``SOURCE_DATE_EPOCH`` when set, for reproducible files)."""
+    epoch = os.environ.get("SOURCE_DATE_EPOCH")
+    if epoch and epoch.strip().isdigit():
+        return datetime.fromtimestamp(int(epoch), tz=UTC)
+    return datetime.now(UTC).replace(microsecond=0)
+
+
+# ----------------------------------------------------------------------------- calibration formats
+
+
+def _collect(args: argparse.Namespace, need_raw: bool = False) -> tuple[Collected, RawFiles | None]:
+    """The results of SOURCE with their recording times (and the raw files, when given)."""
+    if need_raw and args.raw is None:
+        raise ExportUsageError(f"{args.format} needs --raw DIR (the campaign's raw folder): the noise "
+                               "comes from the labelled stationary segments of the raw recordings")
+    collected = load_results(args.source)
+    if need_raw and collected.kind != "labels":
+        raise ExportUsageError(f"{args.source}: {args.format} needs a labels folder or label file as "
+                               "SOURCE (the raw segments they name), found an ofbe-predict JSON")
+    raw = RawFiles(args.raw) if args.raw is not None else None
+    collected = attach_raw_times(collected, raw)
+    for line in collected.skipped:
+        print(f"{PROG}: warning: skipped {line}", file=sys.stderr)
+    return collected, raw
+
+
+def _calibration_files(collected: Collected, name: str, render: Callable[..., bytes]) -> list[ExportFile]:
+    ending = fmt.FORMAT_EXTENSIONS[name]
+    return [ExportFile(f"{r.stem}.{ending}", render(r), r.device, r.time_utc, name)
+            for r in collected.results]
+
+
+def _imucal(args: argparse.Namespace) -> list[ExportFile]:
+    collected, _ = _collect(args)
+    now = written_time()
+    return _calibration_files(collected, "imucal", lambda r: fmt.imucal_file(r, now))
+
+
+def _kalibr(args: argparse.Namespace) -> list[ExportFile]:
+    collected, raw = _collect(args, need_raw=True)
+    assert raw is not None
+    now = written_time()
+    return _calibration_files(collected, "kalibr",
+                              lambda r: fmt.kalibr_file(r, noise_of(r, raw), now, args.rostopic))
+
+
+def _ros(args: argparse.Namespace) -> list[ExportFile]:
+    collected, _ = _collect(args)
+    now = written_time()
+    return _calibration_files(collected, "ros", lambda r: fmt.ros_file(r, now, args.frame_id))
+
+
+def _ggir(args: argparse.Namespace) -> list[ExportFile]:
+    collected, _ = _collect(args)
+    now = written_time()
+    return _calibration_files(collected, "ggir", lambda r: fmt.ggir_file(r, now))
+
+
+def _json(args: argparse.Namespace) -> list[ExportFile]:
+    collected, _ = _collect(args)
+    now = written_time()
+    return _calibration_files(collected, "json", lambda r: fmt.json_file(r, now))
+
+
+# ----------------------------------------------------------------------------- on-device formats
+
+
+def _training_windows(args: argparse.Namespace) -> tuple[np.ndarray, str]:
+    """The windows a model was trained on, (N, T, 3) m/s², and a description of them."""
+    if args.dataset is None:
+        raise ExportUsageError(f"{args.format} needs --dataset DIR: the dataset the model was trained on "
+                               "(its training windows are the int8 representative set)")
+    from ofbe_data import load_dataset
+
+    data = load_dataset(args.dataset)
+    keep = np.ones(len(data.meta), dtype=bool)
+    what = f"{args.dataset}"
+    if args.device is not None:
+        keep &= (data.meta["device"] == args.device).to_numpy()
+        what += f", device {args.device}"
+    if args.protocol is not None:
+        column = f"fold_{args.protocol}"
+        if column not in data.meta.columns:
+            known = ", ".join(c[5:] for c in data.meta.columns if c.startswith("fold_"))
+            raise ExportUsageError(f"--protocol {args.protocol}: {args.dataset} has no {column} column "
+                                   f"(protocols: {known})")
+        if args.fold is None:
+            raise ExportUsageError("--protocol needs --fold K: the fold whose training windows are meant")
+        keep &= (data.meta[column] != args.fold).to_numpy()
+        what += f", training windows of {args.protocol} fold {args.fold}"
+    else:
+        what += ", all windows (a model trained on all of them)"
+    if not keep.any():
+        raise ExportUsageError(f"{what}: no window left to quantise with")
+    return np.asarray(data.X[keep]), what
+
+
+def _tflite(args: argparse.Namespace) -> list[ExportFile]:
+    from ofbe_model.deploy.tflite import export_tflite
+
+    windows, what = _training_windows(args)
+    with tempfile.TemporaryDirectory(prefix=".ofbe-export-") as tmp:
+        sidecar = export_tflite(args.source, tmp, windows, name=args.source.stem, source=what)
+        return [ExportFile(name, (Path(tmp) / name).read_bytes()) for name in sidecar["files"].values()]
+
+
+def _c_header(args: argparse.Namespace) -> list[ExportFile]:
+    from ofbe_model.deploy.c_header import export_c_header
+
+    name = re.sub(r"[^A-Za-z0-9_]", "_", args.source.stem) or "gravity_prior"
+    with tempfile.TemporaryDirectory(prefix=".ofbe-export-") as tmp:
+        path = export_c_header(args.source, Path(tmp) / f"{name}.h", name=name)
+        return [ExportFile(path.name, path.read_bytes())]
+
+
+FORMATS: dict[str, Format] = {
+    "imucal": Format(_imucal, "imucal Ferraris calibration JSON (accelerometer from ofbe, gyroscope "
+                              "identity)"),
+    "kalibr": Format(_kalibr, "Kalibr imu.yaml: accelerometer noise density (and random walk) from the "
+                              "Allan deviation; needs --raw"),
+    "ros": Format(_ros, "YAML: bias to subtract (m/s²) and linear_acceleration_covariance"),
+    "ggir": Format(_ggir, "GGIR backup.cal.coef CSV: scale.*, offset.* (g, GGIR's sign)"),
+    "json": Format(_json, "ofbe-calibration/1 JSON: bias, std, kind, method, source, time, version"),
+    "tflite": Format(_tflite, "OFBENet (SOURCE: a .keras) as float32 and int8 TensorFlow Lite with a JSON "
+                              "sidecar of the scaling; needs --dataset"),
+    "c-header": Format(_c_header, "the gravity-prior (SOURCE: its .json) as a self-contained C header with a "
+                                  "reference C function"),
+}
+"""FORMAT → how to export it. A new format is one more entry here."""
+
+
+# ----------------------------------------------------------------------------- writing
+
+
+def _out_targets(files: Sequence[ExportFile], out: Path, force: bool, folder: bool = False
+                 ) -> tuple[list[tuple[Path, bytes]], bool]:
+    """(path, bytes) to write for ``--out`` and whether ``out`` is a new folder to build whole
+    (``folder``: the user wrote ``--out`` with a trailing slash, a folder even for one file)."""
+    names = [f.name for f in files]
+    if len(set(names)) != len(names):
+        raise CalibrationStoreError(f"{out}: two files of this export share a name: "
+                                    f"{sorted({n for n in names if names.count(n) > 1})}")
+    if out.is_dir():
+        targets = [(out / f.name, f.data) for f in files]
+    elif folder and not out.exists():
+        return [(out / f.name, f.data) for f in files], True
+    elif len(files) == 1:
+        targets = [(out, files[0].data)]
+    else:
+        if out.exists() or out.suffix in FILE_SUFFIXES:
+            raise ExportUsageError(f"{out}: expected a folder for {len(files)} files "
+                                   f"({', '.join(names[:3])}{', …' if len(names) > 3 else ''}), found "
+                                   f"{'an existing file' if out.exists() else 'a file name'}; give a folder")
+        return [(out / f.name, f.data) for f in files], True
+    if not force:
+        for path, _ in targets:
+            if path.exists():
+                raise OutputExistsError(path)
+    return targets, False
+
+
+def _store_targets(files: Sequence[ExportFile], store: Path, force: bool) -> list[tuple[Path, bytes]]:
+    targets: dict[Path, ExportFile] = {}
+    for f in files:
+        if f.device is None or f.store_format is None:
+            continue
+        if f.when is None:
+            raise CalibrationStoreError(f"{f.name}: expected a recording time to file it in {store}, "
+                                        "found none")
+        path = store_path(store, f.device, f.when, f.store_format)
+        if path in targets:
+            raise CalibrationStoreError(
+                f"{path}: {targets[path].name} and {f.name} would be filed under the same device and second; "
+                "pass --raw so that each is filed at its own recording's start time")
+        if path.exists() and not force:
+            raise OutputExistsError(path)
+        targets[path] = f
+    return [(p, f.data) for p, f in targets.items()]
+
+
+def write_outputs(files: Sequence[ExportFile], out: Path | None, store: Path | None, force: bool,
+                  out_is_folder: bool = False) -> list[Path]:
+    """Write every file to ``--out`` and ``--store``; check every target before writing any.
+
+    ``out_is_folder``: ``--out`` names a folder even for one file (written with a trailing slash).
+    """
+    if not files:
+        raise CalibrationStoreError("nothing to export")
+    out_targets, new_folder = ([], False) if out is None else _out_targets(files, out, force, out_is_folder)
+    store_targets = _store_targets(files, store, force) if store is not None else []
+    written = []
+    if new_folder and out is not None:
+        with atomic_directory(out) as tmp:
+            for path, data in out_targets:
+                (tmp / path.name).write_bytes(data)
+        written.append(out)
+    else:
+        for path, data in out_targets:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            write_bytes_atomic(path, data)
+            written.append(path)
+    for path, data in store_targets:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write_bytes_atomic(path, data)
+        written.append(path)
+    return written
+
+
+# ----------------------------------------------------------------------------- command
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The command-line parser of ``ofbe-export``."""
+    p = argparse.ArgumentParser(
+        prog=PROG, formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Calibration results (labels or ofbe-predict estimates) in the files other tools\n"
+                    "load, with their sign and unit conventions converted (docs/exports.md).",
+        epilog="formats:\n" + "\n".join(f"  {k:<9} {v.help}" for k, v in FORMATS.items()))
+    p.add_argument("format", metavar="FORMAT", choices=sorted(FORMATS), help=", ".join(FORMATS))
+    p.add_argument("source", metavar="SOURCE", type=Path,
+                   help="labels folder (processed/labels/<campaign>), a <session>.parquet, or "
+                        "ofbe-predict's JSON; for tflite a .keras model, for c-header a gravity-prior .json")
+    p.add_argument("--out", help="output file (one result) or folder (several; a trailing / makes it a "
+                                 "folder for one)")
+    p.add_argument("--store", type=Path,
+                   help="also file each result as STORE/<device>/<device>_<YYYYmmddTHHMMSS>.<ending>")
+    p.add_argument("--raw", type=Path,
+                   help="the campaign's raw folder: recording start times, and the segments kalibr analyses")
+    p.add_argument("--frame-id", default=fmt.DEFAULT_FRAME_ID, help="ros: frame_id (default %(default)s)")
+    p.add_argument("--rostopic", default=fmt.DEFAULT_ROSTOPIC, help="kalibr: rostopic (default %(default)s)")
+    p.add_argument("--dataset", type=Path, help="tflite: the dataset the model was trained on")
+    p.add_argument("--protocol", help="tflite: with --fold, only that fold's training windows")
+    p.add_argument("--fold", type=int, help="tflite: the fold of --protocol the model was trained for")
+    p.add_argument("--device", help="tflite: only this device's windows (a per-device model)")
+    p.add_argument("--force", action="store_true", help="replace existing output files")
+    return p
+
+
+@command(PROG)
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of ``ofbe-export``: 0 written, 1 bad data, 2 usage."""
+    args = build_parser().parse_args(argv)
+    raw_out = args.out
+    args.out = Path(raw_out) if raw_out is not None else None
+    if args.out is None and args.store is None:
+        return fail(PROG, "expected --out PATH or --store DIR (or both), found neither", EXIT_USAGE)
+    try:
+        files = FORMATS[args.format].handler(args)
+        written = write_outputs(files, args.out, args.store, args.force,
+                                out_is_folder=str(raw_out or "").endswith(("/", os.sep)))
+    except ExportUsageError as exc:
+        return fail(PROG, str(exc), EXIT_USAGE)
+    except OfbeError as exc:
+        return fail(PROG, str(exc), EXIT_DATA)
+    except OSError as exc:
+        return fail(PROG, f"{exc.filename or args.out}: {exc.strerror or exc}: nothing partial was written",
+                    EXIT_DATA)
+    for path in written:
+        print(path)
+    print(f"{PROG}: {args.format}: {len(files)} result file{'s' if len(files) != 1 else ''} written",
+          file=sys.stderr)
+    return EXIT_OK
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

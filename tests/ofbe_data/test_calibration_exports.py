@@ -1,0 +1,343 @@
+"""Calibration exports (ofbe_data.calibration) on a simulated, labelled campaign: each format's
+sign and unit convention checked through the other tool's own code or formula, the noise
+density against the simulator's truth, and the store's look-up."""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+import math
+from dataclasses import replace
+from datetime import UTC, datetime, timedelta
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+import pytest
+import yaml
+
+import ofbe_data
+from ofbe_data.calibration import formats as fmt
+from ofbe_data.calibration.noise import RawFiles, attach_raw_times, noise_from_segments, noise_of
+from ofbe_data.calibration.results import (
+    APPARENT,
+    TIME_LABEL_MTIME,
+    TIME_RAW,
+    ZERO_G_OFFSET,
+    CalibrationResult,
+    CalibrationSourceError,
+    attach_file_times,
+    results_from_labels,
+    results_from_predictions,
+)
+from ofbe_data.calibration.store import (
+    CalibrationNotFoundError,
+    CalibrationStoreError,
+    find_calibration,
+    store_path,
+)
+from ofbe_data.io.formats import read_device_file
+from ofbe_data.io.gravity import G0
+from ofbe_data.io.manifest import load_manifest
+from ofbe_data.labelling.batch import expand_sessions, label_sessions
+from ofbe_data.labelling.labels import LabelParams
+from ofbe_data.labelling.store import read_labels
+from ofbe_data.simulator import load_config, simulate_campaign
+
+WRITTEN = datetime(2025, 6, 1, 12, 0, 0, tzinfo=UTC)
+#: Every key of Kalibr's IMU yaml (https://github.com/ethz-asl/kalibr/wiki/yaml-formats).
+KALIBR_KEYS = {"accelerometer_noise_density", "accelerometer_random_walk", "gyroscope_noise_density",
+               "gyroscope_random_walk", "rostopic", "update_rate"}
+
+
+@pytest.fixture(scope="module")
+def campaign(tmp_path_factory) -> Path:
+    """tiny-multi-position (1 board, 2 power cycles × 6 faces) and tiny-gravity-aligned
+    (2 boards × 3 power cycles, 35 s each), labelled."""
+    tmp = tmp_path_factory.mktemp("cal")
+    simulate_campaign(load_config("tiny-multi-position"), tmp / "raw" / "mp", seed=1, jobs=1, progress=False)
+    simulate_campaign(load_config("tiny-gravity-aligned"), tmp / "raw" / "ga", seed=2, jobs=1, progress=False)
+    outcomes = label_sessions(expand_sessions([tmp / "raw" / "mp", tmp / "raw" / "ga"]),
+                              LabelParams(min_samples=1000), tmp / "labels", jobs=1, progress=False)
+    assert [o.error for o in outcomes if o.error] == []
+    return tmp
+
+
+@pytest.fixture(scope="module")
+def apparent_labels(campaign, tmp_path_factory) -> Path:
+    """The multi-position labels with the offsets removed and a level method: apparent biases,
+    six rows per power cycle."""
+    out = tmp_path_factory.mktemp("app")
+    for f in sorted((campaign / "labels" / "mp").glob("*.parquet")):
+        table = pq.read_table(f)
+        frame = table.to_pandas()
+        frame[["offset_x", "offset_y", "offset_z"]] = np.nan
+        frame["label_method"] = "level"
+        pq.write_table(pa.Table.from_pandas(frame, schema=table.schema, preserve_index=False), out / f.name)
+    return out
+
+
+@pytest.fixture(scope="module")
+def scaled_labels(campaign, tmp_path_factory) -> Path:
+    """The multi-position labels as a scale-offset fit would write them (fit_model, scale_x/y/z)."""
+    out = tmp_path_factory.mktemp("scaled")
+    for f in sorted((campaign / "labels" / "mp").glob("*.parquet")):
+        table = pq.read_table(f)
+        frame = table.to_pandas()
+        frame["fit_model"] = "scale-offset"
+        frame[["scale_x", "scale_y", "scale_z"]] = [1.012, 0.991, 1.004]
+        pq.write_table(pa.Table.from_pandas(frame, schema=table.schema, preserve_index=False), out / f.name)
+    return out
+
+
+def _one_raw(campaign: Path, campaign_name: str, session: str, device: str) -> np.ndarray:
+    m = load_manifest(campaign / "raw" / campaign_name / session)
+    rec = m.recordings[0]
+    return read_device_file(m.file_path(rec, device), m.devices[device]).acc
+
+
+# ----------------------------------------------------------------------------- results
+
+
+def _bare_result() -> CalibrationResult:
+    return CalibrationResult(device="d", power_cycle=1, bias=(0.1, 0.2, 0.3), std=None, bias_kind=APPARENT,
+                             method="level", scale=(1.0, 1.0, 1.0), scale_known=False, scale_note="identity",
+                             g_local=9.8, fs_hz=100.0, temperature_c=None, n_rows=1, sources=(),
+                             recordings=())
+
+
+
+def test_offsets_become_one_zero_g_result_per_power_cycle(campaign) -> None:
+    labels = read_labels(campaign / "labels" / "mp")
+    got = results_from_labels(campaign / "labels" / "mp")
+    assert got.kind == "labels" and [(r.device, r.power_cycle) for r in got.results] == [
+        ("sparkfun-1", 1), ("sparkfun-1", 2)]
+    for r in got.results:
+        rows = labels[labels.power_cycle == r.power_cycle]
+        assert r.bias_kind == ZERO_G_OFFSET and r.method == "multi-position" and r.std is None
+        assert r.bias == tuple(rows[["offset_x", "offset_y", "offset_z"]].iloc[0])
+        assert r.n_rows == len(rows) >= 6 and len(r.segments) == len(rows)
+        assert r.scale == (1.0, 1.0, 1.0) and not r.scale_known and "scale identity" in r.scale_note
+        assert r.stem == f"sparkfun-1.pc{r.power_cycle}"
+        assert r.sources[0].sha256 == hashlib.sha256(Path(r.sources[0].path).read_bytes()).hexdigest()
+
+
+def test_apparent_biases_are_averaged_with_their_std(campaign, apparent_labels) -> None:
+    labels = read_labels(apparent_labels)
+    for r in results_from_labels(apparent_labels).results:
+        rows = labels[labels.power_cycle == r.power_cycle][["bias_x", "bias_y", "bias_z"]].to_numpy()
+        assert r.bias_kind == APPARENT and r.method == "level"
+        assert np.allclose(r.bias, rows.mean(axis=0), rtol=0, atol=1e-15)
+        assert np.allclose(r.std, rows.std(axis=0, ddof=1), rtol=0, atol=1e-15)
+    single = results_from_labels(campaign / "labels" / "ga").results
+    assert len(single) == 6 and all(r.bias_kind == APPARENT and r.std is None for r in single)
+
+
+def test_a_fitted_scale_is_carried(scaled_labels, apparent_labels) -> None:
+    for r in results_from_labels(scaled_labels).results:
+        assert r.scale == (1.012, 0.991, 1.004) and r.scale_known and "scale-offset fit" in r.scale_note
+    for r in results_from_labels(apparent_labels).results:  # apparent biases: no scale applies
+        assert r.scale == (1.0, 1.0, 1.0) and not r.scale_known
+
+
+def test_bad_sources_are_one_line_errors(tmp_path, campaign) -> None:
+    with pytest.raises(CalibrationSourceError, match="no such path"):
+        results_from_labels(tmp_path / "nope")
+    with pytest.raises(CalibrationSourceError, match="found none"):
+        results_from_labels(tmp_path)
+    (tmp_path / "x.parquet").write_bytes(b"not parquet")
+    with pytest.raises(CalibrationSourceError, match=r"x\.parquet: expected an ofbe label file"):
+        results_from_labels(tmp_path / "x.parquet")
+    (tmp_path / "p.json").write_text('{"results": [{"device": "d", "file": "f", "g_local": 9.8, '
+                                     '"bias_m_s2": [1, 2]}]}')
+    with pytest.raises(CalibrationSourceError, match=r"results\[0\]: bias_m_s2: expected 3 finite numbers"):
+        results_from_predictions(tmp_path / "p.json")
+    (tmp_path / "q.json").write_text("{\n  oops")
+    with pytest.raises(CalibrationSourceError, match=r"q\.json:2: expected the JSON that ofbe-predict"):
+        results_from_predictions(tmp_path / "q.json")
+
+
+# ----------------------------------------------------------------------------- imucal
+
+
+def _imucal_load(tmp_path: Path, data: bytes):
+    from imucal import FerrarisCalibrationInfo
+    from imucal.management import load_calibration_info
+
+    path = tmp_path / "cal.imucal.json"
+    path.write_bytes(data)
+    cal = load_calibration_info(path)
+    assert isinstance(cal, FerrarisCalibrationInfo) and cal.CAL_TYPE == "Ferraris"
+    return cal
+
+
+@pytest.mark.parametrize("scaled", [False, True])
+def test_imucal_corrects_as_ofbe_does(tmp_path, campaign, scaled_labels, scaled) -> None:
+    """imucal's own calibrate (R⁻¹K⁻¹(f − b)) on a raw recording equals ofbe's A⁻¹(f − b)."""
+    r = results_from_labels(scaled_labels if scaled else campaign / "labels" / "mp").results[0]
+    assert r.scale_known == scaled
+    data = fmt.imucal_file(r, WRITTEN)
+    cal = _imucal_load(tmp_path, data)
+    assert cal.to_json().encode() == data  # byte for byte what imucal itself writes
+    assert cal.from_acc_unit == "m/s^2" and "gyroscope" in cal.comment
+    assert "bias_kind: zero-g-offset" in cal.comment and r.scale_note in cal.comment
+    acc = _one_raw(campaign, "mp", "mp-pc001", "sparkfun-1")
+    gyr = np.random.default_rng(0).normal(size=acc.shape)
+    cal_acc, cal_gyr = cal.calibrate(acc=acc, gyr=gyr, acc_unit="m/s^2", gyr_unit="deg/s")
+    ours = fmt.ofbe_correct(acc, r.bias, r.scale)
+    assert np.max(np.abs(cal_acc - ours)) < 1e-9
+    assert np.array_equal(cal_gyr, gyr)  # gyroscope identity/zero
+    assert np.max(np.abs(np.asarray(r.bias))) > 0.05  # the sign matters: b is far from zero
+
+
+# ----------------------------------------------------------------------------- GGIR
+
+
+@pytest.mark.parametrize("scaled", [False, True])
+def test_ggir_formula_equals_ofbe_correction(campaign, scaled_labels, scaled) -> None:
+    r = results_from_labels(scaled_labels if scaled else campaign / "labels" / "mp").results[1]
+    assert r.scale_known == scaled
+    table = pd.read_csv(io.BytesIO(fmt.ggir_file(r, WRITTEN)))
+    assert tuple(table.columns) == fmt.GGIR_COLUMNS and table.columns[0] == "filename"
+    assert list(table["filename"]) == ["sparkfun-1.csv"] and list(table["bias_kind"]) == [ZERO_G_OFFSET]
+    assert "bias_kind zero-g-offset" in table["QCmessage"][0]
+    row = table.iloc[0]
+    scale_g = row[["scale.x", "scale.y", "scale.z"]].to_numpy(float)
+    offset_g = row[["offset.x", "offset.y", "offset.z"]].to_numpy(float)
+    assert np.all(row[["temperature.offset.x", "temperature.offset.y", "temperature.offset.z"]] == 0)
+    assert np.all(np.sign(offset_g) == -np.sign(r.bias))  # GGIR adds its offset
+    raw = _one_raw(campaign, "mp", "mp-pc002", "sparkfun-1")
+    ggir = fmt.ggir_apply(raw / G0, scale_g, offset_g)  # (raw_g + offset) * scale, in g
+    assert np.max(np.abs(ggir * G0 - fmt.ofbe_correct(raw, r.bias, r.scale))) < 1e-12
+
+
+def test_ggir_writes_a_row_per_raw_file(campaign, apparent_labels) -> None:
+    r = results_from_labels(apparent_labels).results[0]
+    table = pd.read_csv(io.BytesIO(fmt.ggir_file(r, WRITTEN)))
+    assert len(table) == 1 and table["power_cycle"][0] == 1  # six recordings of one file name each
+    ga = results_from_labels(campaign / "labels" / "ga").results
+    assert all(len(pd.read_csv(io.BytesIO(fmt.ggir_file(x, WRITTEN)))) == 1 for x in ga)
+
+
+# ----------------------------------------------------------------------------- ROS
+
+
+def test_ros_yaml_parses_back_exactly(apparent_labels, campaign) -> None:
+    r = results_from_labels(apparent_labels).results[0]
+    doc = yaml.safe_load(fmt.ros_file(r, WRITTEN, frame_id="dut_link"))
+    assert doc["device"] == "sparkfun-1" and doc["power_cycle"] == 1 and doc["frame_id"] == "dut_link"
+    assert doc["bias_kind"] == APPARENT
+    assert [doc["linear_acceleration_bias"][a] for a in "xyz"] == list(r.bias)
+    cov = doc["linear_acceleration_covariance"]
+    assert len(cov) == 9 and cov[0] == r.std[0] ** 2 and cov[4] == r.std[1] ** 2 and cov[8] == r.std[2] ** 2
+    assert [cov[i] for i in (1, 2, 3, 5, 6, 7)] == [0.0] * 6
+    offset = results_from_labels(campaign / "labels" / "mp").results[0]
+    doc = yaml.safe_load(fmt.ros_file(offset, WRITTEN))
+    assert doc["linear_acceleration_covariance"] == [0.0] * 9 and doc["frame_id"] == fmt.DEFAULT_FRAME_ID
+
+
+@pytest.mark.parametrize("x", [0.0, -0.0, 1e-5, -2.5e-7, 1e20, 5e-324, 0.1 + 0.2, -0.331111111999999, 123.0])
+def test_yaml_floats_round_trip(x) -> None:
+    back = yaml.safe_load(f"v: {fmt.yaml_float(x)}")["v"]
+    assert isinstance(back, float) and back == x and math.copysign(1, back) == math.copysign(1, x)
+
+
+# ----------------------------------------------------------------------------- JSON
+
+
+def test_json_parses_back(campaign) -> None:
+    r = attach_file_times(results_from_labels(campaign / "labels" / "mp")).results[0]
+    doc = json.loads(fmt.json_file(r, WRITTEN))
+    assert doc["format"] == "ofbe-calibration/1" and doc["ofbe_version"] == ofbe_data.__version__
+    assert (doc["device"], doc["power_cycle"], doc["bias_kind"], doc["method"]) == (
+        "sparkfun-1", 1, ZERO_G_OFFSET, "multi-position")
+    assert doc["bias_m_s2"] == list(r.bias) and doc["bias_std_m_s2"] is None
+    assert doc["written_utc"] == "2025-06-01T12:00:00Z" and doc["time_source"] == TIME_LABEL_MTIME
+    (src,) = doc["source"]["files"]
+    assert src["sha256"] == hashlib.sha256(Path(src["path"]).read_bytes()).hexdigest()
+    assert datetime.strptime(doc["time_utc"], "%Y-%m-%dT%H:%M:%SZ")
+
+
+# ----------------------------------------------------------------------------- Kalibr / noise
+
+
+def test_kalibr_noise_density_matches_the_simulated_white_noise(campaign) -> None:
+    """N = σ/√f_s from the Allan deviation of the labelled segments, within 10 % of the
+    simulator's per-axis noise (the 3.9 mg quantisation adds a few percent)."""
+    truth_mg = np.array(load_config("tiny-gravity-aligned").dut_model.noise_mg)
+    raw = RawFiles(campaign / "raw" / "ga")
+    for r in results_from_labels(campaign / "labels" / "ga").results:
+        noise = noise_of(r, raw)
+        expected = truth_mg * 1e-3 * G0 / math.sqrt(r.fs_hz)
+        assert np.all(np.abs(np.array(noise.density) / expected - 1) < 0.10), (noise.density, expected)
+        assert noise.random_walk is None  # 35 s segments cannot show the +1/2 branch
+        doc = yaml.safe_load(fmt.kalibr_file(r, noise, WRITTEN))
+        assert set(doc) <= KALIBR_KEYS
+        assert set(doc) == {"accelerometer_noise_density", "rostopic", "update_rate"}
+        assert doc["accelerometer_noise_density"] == max(noise.density)  # m/s²/√Hz, one value for all axes
+        assert doc["rostopic"] == "/imu0" and abs(doc["update_rate"] - r.fs_hz) < 1e-5
+        text = fmt.kalibr_file(r, noise, WRITTEN).decode()
+        assert "# accelerometer_random_walk: not measured" in text and "bias_kind: apparent" in text
+
+
+def test_random_walk_is_read_only_where_the_curve_turns_up() -> None:
+    rng = np.random.default_rng(3)
+    fs, n, sigma, k = 100.0, 400_000, 0.03, 2e-4  # crossover √3·N/K ≈ 26 s, 4000 s of data
+    walk = np.cumsum(k / math.sqrt(fs) * rng.standard_normal((n, 3)), axis=0)
+    noise = noise_from_segments([sigma * rng.standard_normal((n, 3)) + walk], fs)
+    assert np.allclose(noise.density, sigma / math.sqrt(fs), rtol=0.05)
+    assert noise.random_walk is not None and np.allclose(noise.random_walk, k, rtol=0.35)
+    white = noise_from_segments([sigma * rng.standard_normal((n, 3))], fs)
+    assert white.random_walk is None
+    r = _bare_result()
+    doc = yaml.safe_load(fmt.kalibr_file(r, noise, WRITTEN, rostopic="/dut/imu"))
+    assert set(doc) == {"accelerometer_noise_density", "accelerometer_random_walk", "rostopic", "update_rate"}
+    assert doc["accelerometer_random_walk"] == max(noise.random_walk) and doc["rostopic"] == "/dut/imu"
+
+
+def test_raw_files_give_recording_times_and_are_checked(campaign, tmp_path) -> None:
+    raw = RawFiles(campaign / "raw" / "mp")
+    got = attach_raw_times(results_from_labels(campaign / "labels" / "mp"), raw)
+    for r in got.results:
+        starts = [raw.recording(s, r.device).start_utc for s in r.segments]
+        assert r.time_source == TIME_RAW and r.time_utc == min(starts).replace(microsecond=0)
+    assert got.results[0].time_utc < got.results[1].time_utc
+    seg = replace(got.results[0].segments[0], raw_sha256="0" * 64)
+    with pytest.raises(CalibrationSourceError, match="expected the bytes that were labelled"):
+        RawFiles(campaign / "raw" / "mp").recording(seg, "sparkfun-1")
+    with pytest.raises(CalibrationSourceError, match="is --raw the campaign's raw folder"):
+        RawFiles(tmp_path).manifest("mp-pc001")
+
+
+# ----------------------------------------------------------------------------- store
+
+
+def test_store_finds_the_latest_at_or_before(tmp_path) -> None:
+    t0 = datetime(2025, 3, 14, 9, 0, 30, tzinfo=UTC)
+    for days, f in ((0, "json"), (10, "json"), (10, "ros"), (20, "imucal")):
+        p = store_path(tmp_path, "sparkfun-1", t0 + timedelta(days=days), f)
+        p.parent.mkdir(parents=True, exist_ok=True)
+        p.write_text("x")
+    expected = tmp_path / "sparkfun-1" / "sparkfun-1_20250314T090030.json"
+    assert store_path(tmp_path, "sparkfun-1", t0, "json") == expected
+    find = ofbe_data.find_calibration
+    assert find is find_calibration
+    assert find(tmp_path, "sparkfun-1", t0).name == "sparkfun-1_20250314T090030.json"
+    assert find(tmp_path, "sparkfun-1", t0 + timedelta(days=5)).name == "sparkfun-1_20250314T090030.json"
+    assert find(tmp_path, "sparkfun-1", t0 + timedelta(days=12), "ros").name.endswith("0324T090030.ros.yaml")
+    assert find(tmp_path, "sparkfun-1", t0 + timedelta(days=30)).name.endswith(".imucal.json")
+    naive = (t0 + timedelta(days=30)).replace(tzinfo=None)  # taken as UTC
+    assert find(tmp_path, "sparkfun-1", naive, "json").name == "sparkfun-1_20250324T090030.json"
+    with pytest.raises(CalibrationStoreError, match="several formats"):
+        find(tmp_path, "sparkfun-1", t0 + timedelta(days=12))
+    with pytest.raises(CalibrationNotFoundError, match="only later ones"):
+        find(tmp_path, "sparkfun-1", t0 - timedelta(seconds=1))
+    with pytest.raises(CalibrationNotFoundError, match="sparkfun-2.*found none"):
+        find(tmp_path, "sparkfun-2", t0)
+    with pytest.raises(LookupError):
+        find(tmp_path, "sparkfun-1", t0, "kalibr")
+    with pytest.raises(CalibrationStoreError, match="expected an id"):
+        find(tmp_path, "..", t0)

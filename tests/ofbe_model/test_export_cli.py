@@ -1,0 +1,201 @@
+"""``ofbe-export``: every calibration format from labels and from ofbe-predict's JSON, the output
+and store layouts, one-line errors with nothing partial written, and the format registry."""
+
+from __future__ import annotations
+
+import json
+import os
+from datetime import timedelta
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+
+from ofbe_data import find_calibration
+from ofbe_data.calibration.formats import FORMAT_EXTENSIONS
+from ofbe_data.calibration.results import TIME_RAW
+from ofbe_data.io.formats import read_device_file
+from ofbe_data.io.manifest import load_manifest
+from ofbe_data.labelling.batch import expand_sessions, label_sessions
+from ofbe_data.labelling.labels import LabelParams
+from ofbe_data.labelling.store import read_labels
+from ofbe_data.simulator import load_config, simulate_campaign
+from ofbe_model.cli import export
+from ofbe_model.predict import predict, targets
+
+
+@pytest.fixture(scope="module")
+def campaign(tmp_path_factory) -> Path:
+    tmp = tmp_path_factory.mktemp("export")
+    simulate_campaign(load_config("tiny-multi-position"), tmp / "raw" / "mp", seed=1, jobs=1, progress=False)
+    simulate_campaign(load_config("tiny-gravity-aligned"), tmp / "raw" / "ga", seed=2, jobs=1, progress=False)
+    outcomes = label_sessions(expand_sessions([tmp / "raw" / "mp", tmp / "raw" / "ga"]),
+                              LabelParams(min_samples=1000), tmp / "labels", jobs=1, progress=False)
+    assert [o.error for o in outcomes if o.error] == []
+    return tmp
+
+
+class _MeanMinusGravity:
+    """A stand-in model for ofbe-predict: bias = window mean − g·z, std 0.01 m/s²."""
+
+    name = "mean-minus-gravity"
+    has_std = True
+    domain_ = None
+
+    def predict(self, X: np.ndarray, meta: pd.DataFrame) -> np.ndarray:
+        return X.mean(axis=1) - np.outer(meta["g_local"].to_numpy(), [0.0, 0.0, 1.0])
+
+    def predict_std(self, X: np.ndarray, meta: pd.DataFrame) -> np.ndarray:
+        return np.full((X.shape[0], 3), 0.01)
+
+
+@pytest.fixture(scope="module")
+def predictions(campaign) -> Path:
+    """The JSON ofbe-predict prints for the gravity-aligned sessions, plus one entry without
+    an estimate."""
+    model = _MeanMinusGravity()
+    items = targets(sorted((campaign / "raw" / "ga").glob("ga-pc*")), None, None)
+    results = predict(model, items, 1000)
+    results.append({"file": "broken.csv", "device": "sparkfun-1", "g_local": 9.8, "error": "no data"})
+    path = campaign / "predictions.json"
+    path.write_text(json.dumps({"model": "stub.json", "method": model.name, "trained_on": None,
+                                "results": results}, indent=1))
+    return path
+
+
+def _run(capsys, *argv: str | Path) -> tuple[int, str, str]:
+    code = export.main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@pytest.mark.parametrize("name", ["imucal", "ros", "ggir", "json"])
+def test_each_format_writes_one_file_per_device_and_power_cycle(tmp_path, campaign, capsys, name) -> None:
+    code, out, err = _run(capsys, name, campaign / "labels" / "mp", "--out", tmp_path / "out")
+    assert code == 0, err
+    ending = FORMAT_EXTENSIONS[name]
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == [
+        f"sparkfun-1.pc1.{ending}", f"sparkfun-1.pc2.{ending}"]
+    assert out.split() == [str(tmp_path / "out")] and "2 result files written" in err
+
+
+def test_kalibr_from_labels_and_raw(tmp_path, campaign, capsys) -> None:
+    code, _, err = _run(capsys, "kalibr", campaign / "labels" / "ga", "--raw", campaign / "raw" / "ga",
+                        "--out", tmp_path / "k", "--rostopic", "/dut/imu")
+    assert code == 0, err
+    files = sorted((tmp_path / "k").iterdir())
+    assert [p.name for p in files] == [f"sparkfun-{d}.pc{c}.kalibr.yaml" for d in (1, 2) for c in (1, 2, 3)]
+    doc = yaml.safe_load(files[0].read_bytes())
+    assert doc["rostopic"] == "/dut/imu" and 0.002 < doc["accelerometer_noise_density"] < 0.006
+    assert "accelerometer_random_walk" not in doc
+
+
+def test_one_result_goes_to_the_file_named(tmp_path, campaign, capsys) -> None:
+    from imucal.management import load_calibration_info
+
+    target = tmp_path / "sub" / "cal.json"
+    code, _, err = _run(capsys, "imucal", campaign / "labels" / "mp" / "mp-pc001.parquet", "--out", target)
+    assert code == 0, err
+    cal = load_calibration_info(target)
+    labels = read_labels(campaign / "labels" / "mp" / "mp-pc001.parquet")
+    assert np.array_equal(cal.b_a, labels[["offset_x", "offset_y", "offset_z"]].to_numpy()[0])
+    code, _, err = _run(capsys, "json", campaign / "labels" / "mp" / "mp-pc001.parquet", "--out", tmp_path)
+    assert code == 0 and (tmp_path / "sparkfun-1.pc1.json").is_file()  # an existing folder: file inside
+
+
+def test_kalibr_needs_raw_and_labels(tmp_path, campaign, predictions, capsys) -> None:
+    code, out, err = _run(capsys, "kalibr", campaign / "labels" / "ga", "--out", tmp_path / "k")
+    assert code == 2 and out == "" and err.count("\n") == 1 and "--raw DIR" in err
+    code, _, err = _run(capsys, "kalibr", predictions, "--raw", campaign / "raw" / "ga",
+                        "--out", tmp_path / "k")
+    assert code == 2 and err.count("\n") == 1 and "labels folder" in err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_outputs_are_never_partial_or_silently_replaced(tmp_path, campaign, capsys) -> None:
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "sparkfun-1.pc1.ros.yaml").write_text("mine")
+    code, _, err = _run(capsys, "ros", campaign / "labels" / "mp", "--out", out)
+    assert code == 1 and "--force" in err and err.count("\n") == 1
+    assert sorted(p.name for p in out.iterdir()) == ["sparkfun-1.pc1.ros.yaml"]  # nothing else written
+    assert (out / "sparkfun-1.pc1.ros.yaml").read_text() == "mine"
+    assert _run(capsys, "ros", campaign / "labels" / "mp", "--out", out, "--force")[0] == 0
+    assert yaml.safe_load((out / "sparkfun-1.pc1.ros.yaml").read_text())["power_cycle"] == 1
+    code, _, err = _run(capsys, "json", campaign / "labels" / "mp", "--out", tmp_path / "one.json")
+    assert code == 2 and "expected a folder for 2 files" in err and not (tmp_path / "one.json").exists()
+
+
+def test_store_files_by_recording_time_and_finds_the_one_in_force(tmp_path, campaign, capsys) -> None:
+    store = tmp_path / "store"
+    code, out, err = _run(capsys, "json", campaign / "labels" / "ga", "--raw", campaign / "raw" / "ga",
+                          "--store", store)
+    assert code == 0, err
+    files = sorted((store / "sparkfun-1").iterdir())
+    assert len(files) == 3 and out.split() == [str(p) for p in sorted(store.rglob("*.json"))]
+    docs = [json.loads(p.read_text()) for p in files]
+    assert [d["power_cycle"] for d in docs] == [1, 2, 3] and {d["time_source"] for d in docs} == {TIME_RAW}
+    m = load_manifest(campaign / "raw" / "ga" / "ga-pc002")
+    start = read_device_file(m.file_path(m.recordings[0], "sparkfun-1"), m.devices["sparkfun-1"]).start_utc
+    assert files[1].name == f"sparkfun-1_{start.strftime('%Y%m%dT%H%M%S')}.json"
+    assert find_calibration(store, "sparkfun-1", start + timedelta(minutes=5)) == files[1]
+    assert find_calibration(store, "sparkfun-1", start - timedelta(seconds=1)) == files[0]
+
+
+def test_store_collisions_write_nothing(tmp_path, campaign, capsys) -> None:
+    """Without --raw the label files' times file the results; two power cycles written in the
+    same second collide, and then neither --out nor the store gets anything."""
+    labels = tmp_path / "labels"
+    labels.mkdir()
+    for f in (campaign / "labels" / "mp").glob("*.parquet"):
+        (labels / f.name).write_bytes(f.read_bytes())
+        os.utime(labels / f.name, (1_700_000_000, 1_700_000_000))
+    code, _, err = _run(capsys, "ros", labels, "--out", tmp_path / "out", "--store", tmp_path / "store")
+    assert code == 1 and "pass --raw" in err and err.count("\n") == 1
+    assert not (tmp_path / "out").exists() and not (tmp_path / "store").exists()
+
+
+def test_predictions_give_one_file_per_estimate(tmp_path, predictions, capsys) -> None:
+    code, _, err = _run(capsys, "ros", predictions, "--out", tmp_path / "ros")
+    assert code == 0 and "warning: skipped broken.csv: no estimate (no data)" in err
+    doc = json.loads(predictions.read_text())
+    good = [r for r in doc["results"] if "error" not in r]
+    files = sorted((tmp_path / "ros").iterdir())
+    assert len(files) == len(good) == 6
+    assert files[0].name == "sparkfun-1.ga-pc001_rec-01_sparkfun-1.ros.yaml"
+    back = yaml.safe_load(files[0].read_text())
+    entry = next(r for r in good if r["device"] == "sparkfun-1" and "ga-pc001" in r["file"])
+    assert [back["linear_acceleration_bias"][a] for a in "xyz"] == entry["bias_m_s2"]
+    assert back["linear_acceleration_covariance"][::4] == [v * v for v in entry["std_m_s2"]]
+    assert back["power_cycle"] is None and back["bias_kind"] == "apparent"
+    code, _, err = _run(capsys, "json", predictions, "--out", tmp_path / "json")
+    first = json.loads(sorted((tmp_path / "json").iterdir())[0].read_text())
+    assert code == 0 and first["method"] == "mean-minus-gravity" and first["model"] == "stub.json"
+    assert first["bias_std_m_s2"] == [0.01] * 3 and first["source"]["files"][0]["path"] == str(predictions)
+    assert first["time_source"] == "recording-header-utc"  # the predicted file's own start stamp
+
+
+def test_usage_and_data_errors_are_one_line(tmp_path, campaign, capsys) -> None:
+    code, _, err = _run(capsys, "json", campaign / "labels" / "mp")
+    assert code == 2 and "--out PATH or --store DIR" in err
+    code, _, err = _run(capsys, "json", tmp_path / "missing", "--out", tmp_path / "o")
+    assert code == 1 and err.count("\n") == 1 and "no such path" in err
+    with pytest.raises(SystemExit) as exc:
+        export.main(["--help"])
+    text = capsys.readouterr().out
+    assert exc.value.code == 0 and all(f"  {name} " in text for name in export.FORMATS)
+
+
+def test_a_new_format_is_one_entry(tmp_path, campaign, capsys, monkeypatch) -> None:
+    """The extension point the model formats use: an entry in FORMATS, writing shared."""
+    def handler(args):
+        return [export.ExportFile("model.bin", b"\x00\x01"), export.ExportFile("model.json", b"{}")]
+
+    monkeypatch.setitem(export.FORMATS, "dummy", export.Format(handler, "two files"))
+    code, _, err = _run(capsys, "dummy", campaign / "labels" / "mp", "--out", tmp_path / "d",
+                        "--store", tmp_path / "s")
+    assert code == 0, err
+    assert sorted(p.name for p in (tmp_path / "d").iterdir()) == ["model.bin", "model.json"]
+    assert not (tmp_path / "s").exists()  # not storable: no device or time
