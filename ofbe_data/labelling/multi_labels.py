@@ -72,8 +72,10 @@ def _device_rows(out: SessionLabels, dev: DeviceSpec, recordings: RecordingSet, 
         found = find_session_poses([(rec.t, rec.acc, rec.fs_hz) for _, rec, _ in usable], m.g_local,
                                    params.poses)
     except NoPosesError as exc:
+        # still parts too few or too alike for the fit: undetermined; no still part: no segment
+        reason = UNDETERMINED if exc.counts and max(exc.counts.values()) > 0 else NO_SEGMENT
         for rec_id, _, _ in usable:
-            out.rejections.append(Rejection(rec_id, dev.id, NO_SEGMENT, f"poses: {exc}"))
+            out.rejections.append(Rejection(rec_id, dev.id, reason, f"poses: {exc}"))
         return []
     rows = []
     for (rec_id, rec, rel), poses in zip(usable, found.poses, strict=True):

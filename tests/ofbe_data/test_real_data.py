@@ -74,3 +74,28 @@ def test_zero_g_offset_agrees_with_imucals_ferraris_calibration(continuous, anno
     # norm-constrained fit uses every face's whole reading. Measured difference 0.0025 m/s² at most.
     np.testing.assert_allclose(ours, theirs, rtol=0, atol=0.005)
     assert np.abs(ours).max() > 0.3  # a large offset (0.53 m/s² in x): the agreement is not trivial
+
+
+def test_session_init_on_a_copy_of_imucals_file_labels_without_edits(tmp_path, continuous, capsys) -> None:
+    import shutil
+
+    from ofbe_data.cli.session import main as session_main
+
+    _, reference = continuous
+    folder = tmp_path / "imucal" / "ferraris"
+    folder.mkdir(parents=True)
+    shutil.copy(DATA.parents[2] / "raw" / "examples" / "imucal-ferraris" / "ferraris-continuous" / "rec-01"
+                / "imu2.csv", folder / "example_ferraris_session.csv")
+    # the file holds a sample index and no rate: init stops and names the flag ...
+    assert session_main(["init", str(folder), "--kind", "multi-position", "--gravity", "9.81"]) == 2
+    assert "is a sample index and the file states no rate: give --rate HZ" in capsys.readouterr().err
+    assert not (folder / "session.yaml").exists()
+    # ... and with it writes a manifest that labels as the hand-written one does
+    assert session_main(["init", str(folder), "--kind", "multi-position", "--gravity", "9.81",
+                         "--rate", "102.4"]) == 0
+    assert session_main(["check", str(folder)]) == 0
+    capsys.readouterr()
+    labels = label_session(folder)
+    assert labels.rejections == [] and len(labels.rows) == len(reference.rows)
+    for ours, theirs in zip(labels.rows, reference.rows, strict=True):
+        assert [ours[f"offset_{a}"] for a in "xyz"] == [theirs[f"offset_{a}"] for a in "xyz"]

@@ -129,6 +129,9 @@ def _normalise(path: Path, data: bytes, mapping: CsvMapping) -> tuple[bytes, np.
         data = b" " * len(_BOM) + data[len(_BOM):]  # same offsets, so the same line numbers
     starts, ends = _split_lines(data)
     n = starts.shape[0]
+    if not data.strip():
+        raise RawFormatError(path, "a column line and data lines" if mapping.header else "data lines",
+                             "an empty file" if not data else "only blank lines")
     if mapping.skip_rows >= n:
         raise RawFormatError(path, f"{mapping.skip_rows} preamble rows (skip_rows) and then data",
                              f"{n} lines in all")
@@ -284,7 +287,11 @@ def read_generic_csv(path: str | Path, mapping: CsvMapping, device: str | None =
     d = np.diff(t_raw)
     typical = float(np.median(d[d > 0])) if np.any(d > 0) else 0.0
     max_step = max(MAX_STEP_S, 10.0 / rate if rate else 0.0, 10.0 * typical)
-    t, _ = _clean_times(body, t_raw, max_step)
+    try:
+        t, _ = _clean_times(body, t_raw, max_step)
+    except RawFormatError as exc:  # no data line left: name the column line (or the first line)
+        raise RawFormatError(path, exc.expected, exc.found, int(line_of[0]) if mapping.header else None
+                             ) from None
     v = body.values
     acc = _acc(v, mapping, keys)
     saturated = np.zeros(t.shape[0], dtype=bool)
