@@ -6,7 +6,7 @@ Usage::
 
 ``DATASET`` is a windowed dataset folder (default ``processed/datasets/rotated``); ``--model``
 an OFBENet trained by ``ofbe-train`` on it (default: the first, in sorted order, of
-``models/<campaign>*/grouped/fold-0.seed-0.keras``). The model's folder names its benchmark
+``models/cv/<campaign>*/grouped/fold-0.seed-0.keras``). The model's folder names its benchmark
 dataset, protocol and fold (``<models>/<dataset>/<protocol>/fold-<k>.seed-<s>.keras``); the
 benchmark uses that fold's training windows as the int8 representative set (and to fit a
 gravity-prior) and its test signals to score. It prints:
@@ -42,8 +42,8 @@ MODEL_NAME = re.compile(r"fold-(\d+)\.seed-(\d+)\.keras")
 
 
 def default_model(dataset: Path) -> Path | None:
-    """The first ``models/<campaign>*/grouped/fold-0.seed-0.keras``, if any."""
-    found = sorted(Path("models").glob(f"{dataset.name}*/grouped/fold-0.seed-0.keras"))
+    """The first ``models/cv/<campaign>*/grouped/fold-0.seed-0.keras``, if any."""
+    found = sorted(Path("models/cv").glob(f"{dataset.name}*/grouped/fold-0.seed-0.keras"))
     return found[0] if found else None
 
 
@@ -95,13 +95,13 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("dataset", nargs="?", default="processed/datasets/rotated", help="windowed dataset folder")
     p.add_argument("--model",
-                   help="OFBENet .keras file (default: models/<campaign>*/grouped/fold-0.seed-0.keras)")
+                   help="OFBENet .keras file (default: models/cv/<campaign>*/grouped/fold-0.seed-0.keras)")
     p.add_argument("--runs", type=int, default=200, help="invocations timed per model (default 200)")
     args = p.parse_args(argv)
     dataset = Path(args.dataset)
     model_path = Path(args.model) if args.model else default_model(dataset)
     if model_path is None or not model_path.is_file():
-        where = model_path or f"models/{dataset.name}*/grouped/fold-0.seed-0.keras"
+        where = model_path or f"models/cv/{dataset.name}*/grouped/fold-0.seed-0.keras"
         print(f"on_device: no trained model at {where}."
               f"\nTrain one (fold 0, one seed, ~1 min on two cores) with:\n"
               f"    ofbe-train {dataset} --protocol grouped --folds 0 --seeds 1 --out models\n"

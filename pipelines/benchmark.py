@@ -1,7 +1,8 @@
 """DVC stage ``benchmark``: every estimator on every fold of each protocol, one report each.
 
 Reads ``benchmark`` (methods, baselines, estimator parameters) and ``benchmark_run``
-(protocol → datasets) from params.yaml; all logic lives in :mod:`ofbe_model.benchmark.runner`.
+(protocol → datasets, optional ``jobs`` and ``scheduler``) from params.yaml; all logic lives
+in :mod:`ofbe_model.benchmark.runner`.
 """
 
 from __future__ import annotations
@@ -17,7 +18,10 @@ def main(params_file: str = "params.yaml") -> int:
     with resolved_params_file(params_file) as resolved:
         for protocol, campaigns in run["protocols"].items():
             args = [*(f"processed/datasets/{c}" for c in campaigns), "--protocol", protocol,
-                    "--out", f"reports/benchmark/{protocol}", "--params", resolved, "--models", "models"]
+                    "--out", f"reports/benchmark/{protocol}", "--params", resolved, "--models", "models/cv",
+                    "--scheduler", str(run.get("scheduler", "processes"))]
+            if "jobs" in run:
+                args += ["--jobs", str(run["jobs"])]
             for c in campaigns:
                 args += ["--truth", f"raw/{c}/_truth"]
             code = benchmark_main(args)

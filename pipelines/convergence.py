@@ -1,7 +1,8 @@
 """DVC stage ``convergence``: the convergence report of the campaigns in ``convergence_run``.
 
 Reads ``label`` (labelling parameters, less ``min_samples``), ``convergence`` (the
-recommendation rule) and ``convergence_run`` (campaigns, worker processes) from
+recommendation rule) and ``convergence_run`` (campaigns, worker processes, an optional
+``scheduler``) from
 params.yaml; all logic lives in :mod:`ofbe_data.reports.convergence`.
 """
 
@@ -17,7 +18,8 @@ def main(params_file: str = "params.yaml") -> int:
     run = load_params(params_file)["convergence_run"]
     with resolved_params_file(params_file) as resolved:
         return convergence_main([*(f"raw/{name}" for name in run["campaigns"]), "--out",
-                                 "reports/convergence", "--params", resolved, "--jobs", str(run["jobs"])])
+                                 "reports/convergence", "--params", resolved, "--jobs", str(run["jobs"]),
+                                 "--scheduler", str(run.get("scheduler", "processes"))])
 
 
 if __name__ == "__main__":

@@ -1,7 +1,7 @@
 """DVC stage ``datasets``: one windowed dataset per labelled campaign in processed/datasets.
 
 Reads ``dataset`` (windowing, folds, protocols) and ``dataset_run`` (campaigns, worker
-processes) from params.yaml; all logic lives in :mod:`ofbe_data.cli.dataset`.
+processes, an optional ``scheduler``) from params.yaml; all logic lives in :mod:`ofbe_data.cli.dataset`.
 """
 
 from __future__ import annotations
@@ -18,7 +18,8 @@ def main(params_file: str = "params.yaml") -> int:
         for name in run["campaigns"]:
             code = dataset_main(["build", f"processed/labels/{name}", "--raw", f"raw/{name}",
                                  "--out", f"processed/datasets/{name}", "--params", resolved,
-                                 "--jobs", str(run["jobs"]), "--force"])
+                                 "--jobs", str(run["jobs"]), "--scheduler",
+                                 str(run.get("scheduler", "processes")), "--force"])
             if code:
                 return code
     return 0

@@ -1,6 +1,7 @@
 """DVC stage ``label``: label the simulated campaigns into processed/labels.
 
-Reads ``label`` (labelling parameters) and ``label_run`` (campaigns, worker processes, and
+Reads ``label`` (labelling parameters) and ``label_run`` (campaigns, worker processes, an
+optional ``scheduler`` (``processes``, ``dask`` or ``tcp://host:port``), and
 the convergence report whose recommendation is ``label.min_samples`` unless ``label`` sets
 it) from params.yaml; all logic lives in :mod:`ofbe_data.cli.label`.
 """
@@ -18,7 +19,8 @@ def main(params_file: str = "params.yaml") -> int:
     extra = ["--min-samples-from", run["min_samples_from"]] if run.get("min_samples_from") else []
     with resolved_params_file(params_file) as resolved:
         return label_main([*(f"raw/{name}" for name in run["campaigns"]), "--out", "processed/labels",
-                           "--params", resolved, "--jobs", str(run["jobs"]), *extra])
+                           "--params", resolved, "--jobs", str(run["jobs"]),
+                           "--scheduler", str(run.get("scheduler", "processes")), *extra])
 
 
 if __name__ == "__main__":

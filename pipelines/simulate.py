@@ -1,6 +1,7 @@
 """DVC stage ``simulate``: write the default simulated campaigns into raw/.
 
-Reads ``simulate`` from params.yaml (with its profile applied,
+Reads ``simulate`` (campaigns, worker processes, an optional ``scheduler``) from params.yaml
+(with its profile applied,
 :mod:`ofbe_data.io.pipeline_params`); all logic lives in :mod:`ofbe_data.simulator`.
 """
 
@@ -20,7 +21,8 @@ def main(params_file: str = "params.yaml") -> int:
         for name, entry in params["campaigns"].items():
             config = load_config(entry["profile"], entry.get("overrides"))
             result = simulate_campaign(config, Path("raw") / name, seed=entry["seed"],
-                                       jobs=params["jobs"], force=True)
+                                       jobs=params["jobs"], force=True,
+                                       scheduler=str(params.get("scheduler", "processes")))
             print(f"{result.folder}: {result.sessions} sessions, {result.files} files, "
                   f"{result.bytes / 1e6:.1f} MB")
     except OfbeError as exc:

@@ -1,6 +1,7 @@
-"""DVC stage ``train``: OFBENet per benchmark dataset, protocol and fold into models/.
+"""DVC stage ``train``: OFBENet per benchmark dataset, protocol and fold into models/cv/.
 
-Reads ``train`` (OFBENet parameters), ``train_run`` (parallel fits) and ``benchmark_run``
+Reads ``train`` (OFBENet parameters), ``train_run`` (parallel fits, an optional
+``scheduler``) and ``benchmark_run``
 (which protocols run on which datasets) from params.yaml; all logic lives in
 :mod:`ofbe_model.ofbenet.training`.
 """
@@ -17,11 +18,12 @@ def main(params_file: str = "params.yaml") -> int:
     params = load_params(params_file)
     run = params["benchmark_run"]
     jobs = str(params.get("train_run", {}).get("jobs", 1))
+    scheduler = str(params.get("train_run", {}).get("scheduler", "processes"))
     with resolved_params_file(params_file) as resolved:
         for protocol, campaigns in run["protocols"].items():
             for name in campaigns:
-                code = train_main([f"processed/datasets/{name}", "--protocol", protocol, "--out", "models",
-                                   "--params", resolved, "--jobs", jobs])
+                code = train_main([f"processed/datasets/{name}", "--protocol", protocol, "--out", "models/cv",
+                                   "--params", resolved, "--jobs", jobs, "--scheduler", scheduler])
                 if code:
                     return code
     return 0

@@ -10,7 +10,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from ofbe_data.core.cli import add_jobs, add_params, command, fail
+from ofbe_data.core.cli import add_jobs, add_params, add_scheduler, command, fail
 from ofbe_data.core.errors import OfbeError
 from ofbe_data.io.typedconfig import read_section
 from ofbe_data.labelling.batch import expand_sessions
@@ -38,6 +38,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--example", help="SESSION/RECORDING/DEVICE for the example curve "
                                      "(default: the one closest to the mean)")
     add_jobs(p)
+    add_scheduler(p)
     p.add_argument("--quiet", action="store_true", help="no progress bar, no summary")
     return p
 
@@ -62,7 +63,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return fail(PROG, str(exc), 2)
     jobs = min(args.jobs, os.cpu_count() or 1, len(folders))
     try:
-        analysis = analyse(folders, label_params, jobs, progress=not args.quiet)
+        analysis = analyse(folders, label_params, jobs, progress=not args.quiet, scheduler=args.scheduler)
         doc = write_report(analysis, Path(args.out), params, label_params, args.example)
     except OfbeError as exc:
         return fail(PROG, str(exc), 1)

@@ -19,7 +19,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from ofbe_data.core.cli import add_jobs, add_params, command, fail
+from ofbe_data.core.cli import add_jobs, add_params, add_scheduler, command, fail
 from ofbe_data.core.errors import ConfigError, OfbeError
 from ofbe_data.dataset.build import build_dataset, dataset_params_from
 from ofbe_data.dataset.export import export_dataset
@@ -43,9 +43,13 @@ def _parser() -> argparse.ArgumentParser:
     add_params(b, "dataset", "windowing, folds and protocols")
     b.add_argument("--window-length", type=int, help="override dataset.window_length (samples)")
     b.add_argument("--stride", type=int, help="override dataset.stride (samples)")
+    b.add_argument("--shard-windows", type=int,
+                   help="override dataset.shard_windows: above this many windows, write shard files of "
+                        "this many (windows-00000.h5, ...) instead of one windows.h5")
     b.add_argument("--truth", help="the simulator's truth folder (default: the raw campaign's own, when "
                                    "present): the card then states the label fidelity")
     add_jobs(b, "worker processes reading raw files")
+    add_scheduler(b)
     b.add_argument("--force", action="store_true", help="replace an existing dataset folder")
     b.add_argument("--quiet", action="store_true", help="no progress bar, no summary")
     v = sub.add_parser("verify", help="check a dataset's checksums, schema version and consistency")
@@ -68,6 +72,8 @@ def _build(args: argparse.Namespace) -> int:
             data["window_length"] = args.window_length
         if args.stride is not None:
             data["stride"] = args.stride
+        if args.shard_windows is not None:
+            data["shard_windows"] = args.shard_windows
         params = dataset_params_from(data, args.params or "command line")
         if args.jobs < 1:
             raise ConfigError("command line", "--jobs", "an integer ≥ 1", str(args.jobs))
@@ -85,7 +91,7 @@ def _build(args: argparse.Namespace) -> int:
         result = build_dataset(labels, raw, out, params, name=args.name,
                                truth_dir=truth,
                                jobs=min(args.jobs, os.cpu_count() or 1), force=args.force,
-                               progress=not args.quiet)
+                               progress=not args.quiet, scheduler=args.scheduler)
     except OfbeError as exc:
         return fail(PROG, str(exc), 1)
     except OSError as exc:

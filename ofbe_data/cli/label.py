@@ -14,7 +14,7 @@ from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
 
-from ofbe_data.core.cli import add_jobs, add_params, command, fail
+from ofbe_data.core.cli import add_jobs, add_params, add_scheduler, command, fail
 from ofbe_data.core.errors import OfbeError
 from ofbe_data.labelling.batch import (
     check_output_folder,
@@ -39,6 +39,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("paths", nargs="+", help="session folders (with session.yaml) or campaign folders")
     p.add_argument("--out", default="processed/labels", help="output folder (default: %(default)s)")
     add_jobs(p)
+    add_scheduler(p)
     add_params(p, "label", "the labelling parameters (e.g. params.yaml)")
     p.add_argument("--min-samples", type=int, help="override label.min_samples")
     p.add_argument("--min-samples-from", metavar="REPORT",
@@ -69,7 +70,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return fail(PROG, str(exc), 2)
     jobs = min(args.jobs, os.cpu_count() or 1, len(folders))
     try:
-        outcomes = label_sessions(folders, params, Path(args.out), jobs, progress=not args.quiet)
+        outcomes = label_sessions(folders, params, Path(args.out), jobs, progress=not args.quiet,
+                                  scheduler=args.scheduler)
+    except OfbeError as exc:  # the Dask scheduler cannot be reached
+        return fail(PROG, str(exc), 1)
     except OSError as exc:
         return fail(PROG, f"{exc.filename or args.out}: {exc.strerror or exc}: the labels could not be "
                           "written (every file is written whole or not at all; free space and rerun)", 1)

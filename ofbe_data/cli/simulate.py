@@ -6,8 +6,9 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-from ofbe_data.core.cli import EXIT_USAGE, add_jobs, command, fail
+from ofbe_data.core.cli import EXIT_DATA, EXIT_USAGE, add_jobs, add_scheduler, command, fail
 from ofbe_data.core.errors import OfbeError
+from ofbe_data.core.scheduler import SchedulerError, TaskError
 
 PROG = "ofbe-simulate"
 
@@ -37,6 +38,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="file format of the reference IMU's recordings (default: the config's "
                              "reference_format, mscip-csv unless set)")
     add_jobs(parser)
+    add_scheduler(parser)
     parser.add_argument("--force", action="store_true", help="replace an existing --out folder")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
@@ -46,7 +48,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         overrides = ({"reference_format": args.reference_format}
                      if args.reference_format is not None else None)
         result = simulate_campaign(args.config, args.out, seed=args.seed, jobs=args.jobs,
-                                   force=args.force, progress=not args.quiet, overrides=overrides)
+                                   force=args.force, progress=not args.quiet, overrides=overrides,
+                                   scheduler=args.scheduler)
+    except (TaskError, SchedulerError) as exc:  # a worker died, or the Dask scheduler did not answer
+        return fail(parser.prog, str(exc), EXIT_DATA)
     except OfbeError as exc:
         return fail(parser.prog, str(exc), EXIT_USAGE)
     except OSError as exc:

@@ -1,5 +1,5 @@
-"""What every command line shares: exit statuses, the one-line failure, ``--jobs`` and
-``--params``, and keeping library start-up noise off the terminal.
+"""What every command line shares: exit statuses, the one-line failure, ``--jobs``,
+``--scheduler`` and ``--params``, and keeping library start-up noise off the terminal.
 
 Every command (``ofbe_data.cli.*``, ``ofbe_model.cli.*``) is a ``main(argv) -> int`` that
 parses its arguments, calls its wing, and turns an expected error into one line on stderr,
@@ -63,6 +63,32 @@ def fail(prog: str, message: str, code: int) -> int:
 def add_jobs(parser: argparse.ArgumentParser, what: str = "worker processes") -> None:
     """``--jobs N`` (default 1)."""
     parser.add_argument("--jobs", type=int, default=1, help=f"{what} (default: %(default)s)")
+
+
+def scheduler_arg(value: str) -> str:
+    """``--scheduler``'s type: a scheduler name or address, checked
+    (:func:`ofbe_data.core.scheduler.check_scheduler`).
+
+    Raises
+    ------
+    argparse.ArgumentTypeError
+        Anything else: argparse then exits 2 with ``argument --scheduler: expected …, found …``.
+    """
+    from ofbe_data.core.scheduler import check_scheduler
+
+    try:
+        return check_scheduler(value)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def add_scheduler(parser: argparse.ArgumentParser) -> None:
+    """``--scheduler S``: where ``--jobs`` workers run (default ``processes``)."""
+    parser.add_argument("--scheduler", type=scheduler_arg, default="processes", metavar="S",
+                        help="processes (a local process pool, the default), dask (an embedded Dask "
+                             "cluster of --jobs single-threaded workers) or the address of a running Dask "
+                             "scheduler, tcp://host:port (its workers must see the same files); the outputs "
+                             "are the same whatever the scheduler")
 
 
 def add_params(parser: argparse.ArgumentParser, section: str, what: str) -> None:

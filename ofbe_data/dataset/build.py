@@ -5,14 +5,16 @@ One dataset per campaign (products.md §Dataset). The label rows of the campaign
 than one window are left out (and listed); the protocols that apply to the campaign's kind
 assign 5-fold test folds at the recording level (:mod:`ofbe_data.dataset.splits`); then the raw
 files are read again session by session (:mod:`ofbe_data.dataset.windows`), cut into windows and
-streamed into ``windows.h5`` while the per-window metadata accumulates for
-``windows.parquet`` (:mod:`ofbe_data.dataset.store`). The folder is built under a temporary
-name and renamed when complete.
+streamed into ``windows.h5`` (or, above ``shard_windows`` windows, into shard files
+``windows-00000.h5``, …) while the per-window metadata accumulates for ``windows.parquet``
+(:mod:`ofbe_data.dataset.store`). The folder is built under a temporary name and renamed when
+complete.
 """
 
 from __future__ import annotations
 
 import sys
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -23,10 +25,11 @@ from tqdm import tqdm
 
 from ofbe_data.core.atomic import atomic_directory
 from ofbe_data.core.errors import ConfigError, OfbeError, OutputExistsError
+from ofbe_data.core.parallel import iter_ordered
 from ofbe_data.dataset.fidelity import label_fidelity
 from ofbe_data.dataset.splits import PROTOCOLS, SplitParams, assign_folds
-from ofbe_data.dataset.store import DatasetInfo, fold_column
-from ofbe_data.dataset.windows import WindowParams, iter_windows, n_windows
+from ofbe_data.dataset.store import DEFAULT_SHARD_WINDOWS, DatasetInfo, fold_column
+from ofbe_data.dataset.windows import WindowParams, iter_windows, n_windows, session_windows
 from ofbe_data.dataset.writer import WindowWriter
 from ofbe_data.io.typedconfig import from_plain
 from ofbe_data.labelling.store import read_labels
@@ -74,6 +77,11 @@ class DatasetParams:
         Session kind → protocols written for a campaign of that kind.
     licence
         SPDX id of the data licence written on the card.
+    shard_windows
+        Windows per HDF5 file: a dataset of more windows is written as shards
+        ``windows-00000.h5``, … of this many windows, indexed by ``windows.parquet``; one of at
+        most this many keeps the single ``windows.h5`` (the default,
+        :data:`~ofbe_data.dataset.store.DEFAULT_SHARD_WINDOWS`, leaves the paper's datasets whole).
     """
 
     window_length: int = 3000
@@ -84,6 +92,7 @@ class DatasetParams:
     tilt_tolerance_deg: float = 0.5
     protocols: dict[str, tuple[str, ...]] = field(default_factory=lambda: dict(DEFAULT_PROTOCOLS))
     licence: str = "CC-BY-4.0"
+    shard_windows: int = DEFAULT_SHARD_WINDOWS
 
     @property
     def windows(self) -> WindowParams:
@@ -101,7 +110,7 @@ def dataset_params_from(data: dict[str, Any] | None, source: str | Path = "<para
     Raises
     ------
     ConfigError
-        Unknown key, wrong type, a length or stride < 1, or an unknown protocol.
+        Unknown key, wrong type, a length, stride or shard size < 1, or an unknown protocol.
     """
     plain = dict(data or {})
     if "protocols" in plain and isinstance(plain["protocols"], dict):
@@ -110,6 +119,9 @@ def dataset_params_from(data: dict[str, Any] | None, source: str | Path = "<para
     if params.window_length < 1 or params.stride < 1:
         raise ConfigError(source, "dataset.window_length/stride", "integers ≥ 1",
                           f"{params.window_length}, {params.stride}")
+    if params.shard_windows < 1:
+        raise ConfigError(source, "dataset.shard_windows", "an integer ≥ 1 (windows per shard file)",
+                          str(params.shard_windows))
     for kind, names in params.protocols.items():
         for name in names:
             if name not in PROTOCOLS:
@@ -134,6 +146,8 @@ class BuildResult:
         Recordings left out (segment shorter than one window), as label identities.
     protocols
         Protocols written.
+    n_shards
+        HDF5 files written: 1 for ``windows.h5``, else the shards.
     """
 
     path: Path
@@ -141,6 +155,26 @@ class BuildResult:
     n_recordings: int
     excluded: tuple[str, ...]
     protocols: tuple[str, ...]
+    n_shards: int = 1
+
+
+def _session_task(args: tuple[Path, list[dict[str, Any]], WindowParams]) -> list[np.ndarray]:
+    return session_windows(*args)
+
+
+def _windows(labels: pd.DataFrame, raw_dir: Path, params: WindowParams, jobs: int,
+             scheduler: str) -> Iterator[tuple[int, np.ndarray]]:
+    """:func:`~ofbe_data.dataset.windows.iter_windows` on ``scheduler``: the local process pool,
+    or Dask (sessions streamed in order, a bounded number in flight)."""
+    if scheduler == "processes":
+        yield from iter_windows(labels, raw_dir, params, jobs=jobs)
+        return
+    groups = [(raw_dir / str(session), list(frame.index), frame.to_dict("records"))
+              for session, frame in labels.groupby("session", sort=False)]
+    results = iter_ordered(_session_task, [(folder, rows, params) for folder, _, rows in groups], jobs=jobs,
+                           scheduler=scheduler, name=lambda task: f"session {task[0]}")
+    for (_, index, _), windows in zip(groups, results, strict=True):
+        yield from zip(index, windows, strict=True)
 
 
 def _describe(raw_dir: Path, labels: pd.DataFrame, simulated: bool) -> str:
@@ -170,7 +204,7 @@ def _labelling_text(labels: pd.DataFrame) -> str:
 def build_dataset(labels_dir: str | Path, raw_dir: str | Path, out_dir: str | Path,
                   params: DatasetParams | None = None, *, name: str | None = None,
                   truth_dir: str | Path | None = None, jobs: int = 1, force: bool = False,
-                  progress: bool = True) -> BuildResult:
+                  progress: bool = True, scheduler: str = "processes") -> BuildResult:
     """Build one campaign's dataset folder.
 
     Parameters
@@ -193,6 +227,9 @@ def build_dataset(labels_dir: str | Path, raw_dir: str | Path, out_dir: str | Pa
         Replace an existing ``out_dir`` (only once the new one is complete).
     progress
         Show a progress bar.
+    scheduler
+        Where raw files are read: ``processes``, ``dask`` or ``tcp://host:port``
+        (:mod:`ofbe_data.core.parallel`); the dataset is the same whatever it is.
 
     Returns
     -------
@@ -250,8 +287,9 @@ def build_dataset(labels_dir: str | Path, raw_dir: str | Path, out_dir: str | Pa
     bar = tqdm(total=int(counts.sum()), desc=f"windows {campaign}", unit="window", file=sys.stderr,
                disable=not progress)
     total = 0
-    with atomic_directory(out_dir, replace=force) as tmp, WindowWriter(tmp, info) as writer:
-        for i, X in iter_windows(labels, raw_dir, w, jobs=jobs):
+    with (atomic_directory(out_dir, replace=force) as tmp,
+          WindowWriter(tmp, info, shard_windows=params.shard_windows) as writer):
+        for i, X in _windows(labels, raw_dir, w, jobs, scheduler):
             k = X.shape[0]
             meta = carried.iloc[[i] * k].reset_index(drop=True)
             meta.insert(5, "window_index", np.arange(k, dtype=np.int64))
@@ -262,4 +300,4 @@ def build_dataset(labels_dir: str | Path, raw_dir: str | Path, out_dir: str | Pa
             total += k
             bar.update(k)
     bar.close()
-    return BuildResult(out_dir, total, len(labels), excluded, tuple(protocols))
+    return BuildResult(out_dir, total, len(labels), excluded, tuple(protocols), writer.n_shards)

@@ -13,7 +13,7 @@ from ofbe_data.core.atomic import atomic_directory
 from ofbe_data.core.errors import ConfigError, OutputExistsError
 from ofbe_data.dataset.package import write_package_files
 from ofbe_data.dataset.reader import read_dataset_info, verify_dataset
-from ofbe_data.dataset.store import H5_NAME, PARQUET_NAME, DatasetError
+from ofbe_data.dataset.store import H5_NAME, PARQUET_NAME, DatasetError, shard_layout
 
 # ---------------------------------------------------------------------------------------------
 # Export
@@ -24,7 +24,8 @@ def export_dataset(src: str | Path, dest: str | Path, *, title: str | None = Non
                    force: bool = False) -> Path:
     """Copy a verified dataset to ``dest`` with its package files rewritten.
 
-    The data files are copied byte for byte; ``datapackage.json``, ``README.md``,
+    The data files (``windows.h5``, or every shard of a sharded dataset, and
+    ``windows.parquet``) are copied byte for byte; ``datapackage.json``, ``README.md``,
     ``CITATION.cff`` and ``SHA256SUMS`` are rewritten from the description stored in the
     dataset (so the export is self-contained) with the overrides given. Without overrides the
     export is byte-identical to ``src``. The copy is verified before it is moved into place.
@@ -65,7 +66,9 @@ def export_dataset(src: str | Path, dest: str | Path, *, title: str | None = Non
     except ConfigError as exc:
         raise DatasetError(dest, exc.expected, exc.found, exc.key) from exc
     with atomic_directory(dest, replace=force) as tmp:
-        for name in (H5_NAME, PARQUET_NAME):
+        shards = shard_layout(src)
+        data_files = [H5_NAME] if shards is None else [name for name, _ in shards]
+        for name in (*data_files, PARQUET_NAME):
             shutil.copyfile(src / name, tmp / name)
         write_package_files(tmp, info)
         verify_dataset(tmp)

@@ -1,5 +1,6 @@
 """The files that make a dataset folder a shareable package: Frictionless datapackage.json, the
-dataset card, CITATION.cff, SHA256SUMS.
+dataset card, CITATION.cff, SHA256SUMS. A sharded dataset gets one resource, one card row and one
+checksum per shard file.
 """
 
 from __future__ import annotations
@@ -39,6 +40,7 @@ from ofbe_data.dataset.store import (
     _read_parquet_provenance,
     fold_column,
     sha256_file,
+    shard_layout,
 )
 
 # ---------------------------------------------------------------------------------------------
@@ -125,14 +127,40 @@ def _field_entry(col: _Column) -> dict[str, Any]:
     return entry
 
 
+def _h5_resources(info: DatasetInfo, files: Mapping[str, tuple[int, str]],
+                  layout: list[tuple[str, int]] | None) -> list[dict[str, Any]]:
+    """The Frictionless resources of ``windows.h5``, or one per shard file."""
+    t = info.window_length
+    if layout is None:
+        h5_bytes, h5_hash = files[H5_NAME]
+        return [{"name": "windows-h5", "path": H5_NAME, "profile": "data-resource", "format": "hdf5",
+                 "mediatype": "application/x-hdf5", "bytes": h5_bytes, "hash": f"sha256:{h5_hash}",
+                 "description": f"X float32 (N, {t}, 3) {UNITS}, sensor frame, one gzip+shuffle+fletcher32 "
+                                f"chunk per window; y float64 (N, 3) {UNITS}; meta/ one dataset per column "
+                                f"of {PARQUET_NAME}, same row order"}]
+    out, first = [], 0
+    for i, (name, n) in enumerate(layout):
+        size, digest = files[name]
+        out.append({"name": name.replace(".", "-"), "path": name, "profile": "data-resource",
+                    "format": "hdf5",
+                    "mediatype": "application/x-hdf5", "bytes": size, "hash": f"sha256:{digest}",
+                    "description": f"shard {i} of {len(layout)}: windows {first}..{first + n - 1} "
+                                   f"(window_id); X float32 ({n}, {t}, 3) {UNITS}, sensor frame, one "
+                                   f"gzip+shuffle+fletcher32 chunk per window; y float64 ({n}, 3) {UNITS}; "
+                                   f"meta/ the rows of {PARQUET_NAME} with shard = {i}, same order"})
+        first += n
+    return out
+
+
 def _datapackage(info: DatasetInfo, attrs: Mapping[str, Any], meta: pd.DataFrame,
-                 files: Mapping[str, tuple[int, str]], sizes: Mapping[str, Any]) -> dict[str, Any]:
-    h5_bytes, h5_hash = files[H5_NAME]
+                 files: Mapping[str, tuple[int, str]], sizes: Mapping[str, Any],
+                 layout: list[tuple[str, int]] | None = None) -> dict[str, Any]:
     pq_bytes, pq_hash = files[PARQUET_NAME]
     t = info.window_length
     protocols = {p: {**spec, "fold_column": fold_column(p), "fold_sizes": sizes.get(p)}
                  for p, spec in info.protocols.items()}
-    return {
+    sharded = layout is not None
+    doc = {
         "profile": "data-package",
         "name": _package_name(info.name),
         "title": info.title,
@@ -143,15 +171,13 @@ def _datapackage(info: DatasetInfo, attrs: Mapping[str, Any], meta: pd.DataFrame
         "keywords": ["accelerometer", "bias estimation", "IMU", "stationary", "deep learning"],
         "sources": [{"title": f"Campaign {info.campaign} ({info.kind})"}],
         "resources": [
-            {"name": "windows-h5", "path": H5_NAME, "profile": "data-resource", "format": "hdf5",
-             "mediatype": "application/x-hdf5", "bytes": h5_bytes, "hash": f"sha256:{h5_hash}",
-             "description": f"X float32 (N, {t}, 3) {UNITS}, sensor frame, one gzip+shuffle+fletcher32 chunk "
-                            f"per window; y float64 (N, 3) {UNITS}; meta/ one dataset per column of "
-                            f"{PARQUET_NAME}, same row order"},
+            *_h5_resources(info, files, layout),
             {"name": "windows", "path": PARQUET_NAME, "profile": "tabular-data-resource", "format": "parquet",
              "mediatype": "application/vnd.apache.parquet", "bytes": pq_bytes, "hash": f"sha256:{pq_hash}",
-             "description": "one row per window, same order as windows.h5",
-             "schema": {"fields": [_field_entry(c) for c in _all_columns(list(info.protocols))],
+             "description": ("one row per window, same order as windows.h5" if not sharded else
+                             "the index: one row per window, in window_id order, with its shard file and "
+                             "row there (shard, shard_row)"),
+             "schema": {"fields": [_field_entry(c) for c in _all_columns(list(info.protocols), sharded)],
                         "primaryKey": "window_id"}},
         ],
         "ofbe": {
@@ -163,6 +189,10 @@ def _datapackage(info: DatasetInfo, attrs: Mapping[str, Any], meta: pd.DataFrame
             "toolkit_version": attrs.get("toolkit_version"), "dataset_info": info.to_dict(),
         },
     }
+    if layout is not None:  # single-file datasets keep their bytes
+        doc["ofbe"]["shards"] = {"n_shards": len(layout), "windows_per_shard": int(attrs["shard_windows"]),
+                                 "files": [{"path": name, "n_windows": n} for name, n in layout]}
+    return doc
 
 
 def _md_cell(value: Any) -> str:
@@ -197,8 +227,36 @@ def _fidelity_table(fidelity: Mapping[str, Any]) -> list[str]:
     return _md_table(["quantity", *(axes or ["value"])], rows)
 
 
+#: SPDX id → the Hugging Face Hub's licence id (hf.co/docs/hub/repositories-licenses); others are
+#: written as ``license: other`` with ``license_name``.
+HF_LICENCES = {"CC-BY-4.0": "cc-by-4.0", "CC-BY-SA-4.0": "cc-by-sa-4.0", "CC-BY-NC-4.0": "cc-by-nc-4.0",
+               "CC0-1.0": "cc0-1.0", "MIT": "mit", "Apache-2.0": "apache-2.0", "ODbL-1.0": "odbl",
+               "PDDL-1.0": "pddl", "BSD-3-Clause": "bsd-3-clause", "GPL-3.0-only": "gpl-3.0"}
+HF_SIZE_CATEGORIES = ((1_000, "n<1K"), (10_000, "1K<n<10K"), (100_000, "10K<n<100K"),
+                      (1_000_000, "100K<n<1M"), (10_000_000, "1M<n<10M"))
+
+
+def hf_front_matter(info: DatasetInfo, n_windows: int) -> str:
+    """The card's YAML front matter in the Hugging Face dataset-card convention: licence, task,
+    size category, pretty name and a ``default`` config whose ``train`` split is the window table
+    (``windows.parquet``: metadata, labels and folds; the windows themselves are in HDF5)."""
+    hf = HF_LICENCES.get(info.licence)
+    meta: dict[str, Any] = {"license": hf or "other"}
+    if hf is None:
+        meta["license_name"] = info.licence
+    meta.update({
+        "pretty_name": info.title,
+        "task_categories": ["tabular-regression"],
+        "tags": ["accelerometer", "imu", "sensor-calibration", "bias-estimation", "time-series"],
+        "size_categories": [next((c for limit, c in HF_SIZE_CATEGORIES if n_windows < limit), "n>10M")],
+        "configs": [{"config_name": "default", "data_files": [{"split": "train", "path": PARQUET_NAME}]}],
+    })
+    return "---\n" + yaml.safe_dump(meta, sort_keys=False, allow_unicode=True, width=1000) + "---\n\n"
+
+
 def _readme(info: DatasetInfo, attrs: Mapping[str, Any], meta: pd.DataFrame,
-            files: Mapping[str, tuple[int, str]], sizes: Mapping[str, Any]) -> str:
+            files: Mapping[str, tuple[int, str]], sizes: Mapping[str, Any],
+            layout: list[tuple[str, int]] | None = None) -> str:
     t, s, fs = info.window_length, info.stride, info.fs_hz
     n = len(meta)
     n_rec = len(meta[list(RECORDING_KEY)].drop_duplicates())
@@ -257,20 +315,33 @@ def _readme(info: DatasetInfo, attrs: Mapping[str, Any], meta: pd.DataFrame,
         rows.append(["−1 (training only)", fs_["train_only"]["recordings"], fs_["train_only"]["windows"]])
         out += _md_table(["fold", "test recordings", "test windows"], rows) + [""]
     out += ["## Files", ""]
+    if layout is None:
+        h5_rows = [[H5_NAME, files[H5_NAME][0], f"`{files[H5_NAME][1]}`",
+                    f"`X` (N, {t}, 3) float32, `y` (N, 3) float64, `meta/` columns"]]
+    else:
+        out += [f"Sharded: {len(layout)} HDF5 files of at most {int(attrs['shard_windows'])} windows, each "
+                f"laid out like a single `{H5_NAME}` for its rows; `{PARQUET_NAME}` is the index of all of "
+                "them (columns `shard`, `shard_row`).", ""]
+        h5_rows, first = [], 0
+        for name, k in layout:
+            h5_rows.append([name, files[name][0], f"`{files[name][1]}`",
+                            f"windows {first}–{first + k - 1}: `X` ({k}, {t}, 3), `y`, `meta/`"])
+            first += k
     out += _md_table(["file", "bytes", "sha256", "content"],
-                     [[H5_NAME, files[H5_NAME][0], f"`{files[H5_NAME][1]}`",
-                       f"`X` (N, {t}, 3) float32, `y` (N, 3) float64, `meta/` columns"],
+                     [*h5_rows,
                       [PARQUET_NAME, files[PARQUET_NAME][0], f"`{files[PARQUET_NAME][1]}`",
-                       "one row per window (same order)"],
+                       "one row per window (same order)" if layout is None else
+                       "the index: one row per window, with its `shard` and `shard_row`"],
                       [DATAPACKAGE_NAME, "", "", "Frictionless Data Package description"],
                       [README_NAME, "", "", "this card"],
                       [CITATION_NAME, "", "", "how to cite"],
                       [SUMS_NAME, "", "", "SHA-256 of every other file (`sha256sum -c SHA256SUMS`)"]])
-    out += ["", "Columns of `windows.parquet` (and of `windows.h5:/meta`):", ""]
+    out += ["", "Columns of `windows.parquet` (and of `windows.h5:/meta`):" if layout is None else
+            "Columns of `windows.parquet` (and of every shard's `meta/`, for its rows):", ""]
     out += _md_table(["column", "type", "unit", "meaning"],
                      [[c.name, {"string": "string", "int": "int64", "float": "float64"}[c.kind]
                        + (" (nullable)" if c.nullable else ""), c.unit or "", c.description]
-                      for c in _all_columns(protos)])
+                      for c in _all_columns(protos, layout is not None)])
     where = f"processed/datasets/{info.name}"
     out += ["", "## Loading", "", "```python", "from ofbe_data import load_dataset",
             "", f'ds = load_dataset("{where}")   # checks SHA256SUMS and the schema version',
@@ -278,8 +349,14 @@ def _readme(info: DatasetInfo, attrs: Mapping[str, Any], meta: pd.DataFrame,
             "ds.meta  # pandas DataFrame, one row per window",
             f'frame = load_dataset("{where}", as_="pandas")  # metadata and labels (bias_x/y/z), no X',
             f'tfds = load_dataset("{where}", as_="tf")       # tf.data.Dataset of (X, y), streamed',
-            "```", "", "Without the toolkit: `h5py.File(\"windows.h5\")[\"X\"]` and "
-            "`pyarrow.parquet.read_table(\"windows.parquet\")`.", ""]
+            "```", ""]
+    if layout is None:
+        out += ["Without the toolkit: `h5py.File(\"windows.h5\")[\"X\"]` and "
+                "`pyarrow.parquet.read_table(\"windows.parquet\")`.", ""]
+    else:
+        out += ["`ds.X` reads every shard on first use; `for X, y, meta in ds.iter_shards():` holds one "
+                "shard at a time. Without the toolkit: `h5py.File(\"windows-00000.h5\")[\"X\"]`, … and "
+                "`pyarrow.parquet.read_table(\"windows.parquet\")` (columns `shard`, `shard_row`).", ""]
     if info.extra:
         out += ["## Other properties", ""]
         out += _md_table(["property", "value"], [[k, v] for k, v in info.extra.items()]) + [""]
@@ -320,7 +397,7 @@ def write_package_files(folder: str | Path, info: DatasetInfo) -> None:
     Parameters
     ----------
     folder
-        Folder that already holds ``windows.h5`` and ``windows.parquet``.
+        Folder that already holds ``windows.h5`` (or the shard files) and ``windows.parquet``.
     info
         Dataset description; its structural fields (name, campaign, kind, windowing, protocols)
         must agree with ``windows.h5``'s attributes.
@@ -331,15 +408,20 @@ def write_package_files(folder: str | Path, info: DatasetInfo) -> None:
         When a data file is missing or unreadable, or disagrees with ``info``.
     """
     folder = Path(folder)
-    h5_path, pq_path = folder / H5_NAME, folder / PARQUET_NAME
+    pq_path = folder / PARQUET_NAME
+    layout = shard_layout(folder)
+    h5_names = [H5_NAME] if layout is None else [name for name, _ in layout]
+    h5_path = folder / h5_names[0]
     attrs = _read_h5_header(h5_path)
     _check_info_matches(info, attrs, h5_path)
     _check_version(pq_path, _read_parquet_provenance(pq_path).get("schema_version"))
     meta = pq.read_table(pq_path).replace_schema_metadata(None).to_pandas()
-    files = {n: ((folder / n).stat().st_size, sha256_file(folder / n)) for n in (H5_NAME, PARQUET_NAME)}
+    files = {n: ((folder / n).stat().st_size, sha256_file(folder / n)) for n in (*h5_names, PARQUET_NAME)}
     sizes = fold_sizes(meta)
-    write_bytes_atomic(folder / DATAPACKAGE_NAME, _json_bytes(_datapackage(info, attrs, meta, files, sizes)))
-    write_bytes_atomic(folder / README_NAME, _readme(info, attrs, meta, files, sizes).encode())
+    write_bytes_atomic(folder / DATAPACKAGE_NAME,
+                       _json_bytes(_datapackage(info, attrs, meta, files, sizes, layout)))
+    card = hf_front_matter(info, len(meta)) + _readme(info, attrs, meta, files, sizes, layout)
+    write_bytes_atomic(folder / README_NAME, card.encode())
     write_bytes_atomic(folder / CITATION_NAME,
                        yaml.safe_dump(_citation(info), sort_keys=False, allow_unicode=True).encode())
     write_bytes_atomic(folder / SUMS_NAME, _sums_text(folder).encode())

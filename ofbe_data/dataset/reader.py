@@ -1,4 +1,10 @@
-"""Reading a dataset: headers, verification against the checksums, loading as numpy, pandas or tf.data."""
+"""Reading a dataset: headers, verification against the checksums, loading as numpy, pandas or tf.data.
+
+Both layouts are read: one ``windows.h5``, or shard files ``windows-00000.h5``, … indexed by
+``windows.parquet`` (:mod:`~ofbe_data.dataset.store`). A sharded dataset is loaded lazily: its X
+is read shard by shard (:meth:`LoadedDataset.iter_shards`, :meth:`LoadedDataset.tf_dataset`) or
+all at once on first use of :attr:`LoadedDataset.X`.
+"""
 
 from __future__ import annotations
 
@@ -21,6 +27,8 @@ from ofbe_data.dataset.store import (
     PARQUET_NAME,
     RECORDING_KEY,
     SCHEMA_VERSION,
+    SHARD_COLUMNS,
+    SHARD_RE,
     SUMS_NAME,
     ChecksumError,
     DatasetError,
@@ -31,11 +39,9 @@ from ofbe_data.dataset.store import (
     _read_parquet_provenance,
     read_dataset_info,
     sha256_file,
+    shard_layout,
+    shard_name,
 )
-
-# ---------------------------------------------------------------------------------------------
-# Reading headers
-
 
 # ---------------------------------------------------------------------------------------------
 # Verification and loading
@@ -55,15 +61,26 @@ def _read_sums(path: Path) -> dict[str, str]:
         if "/" in name or "\\" in name or name in (".", ".."):
             raise DatasetError(path, "a plain file name of the dataset folder", repr(name), f"line {i}")
         sums[name] = m.group(1)
-    for required in (H5_NAME, PARQUET_NAME, DATAPACKAGE_NAME):
+    h5_names = _h5_names_of(sums)
+    if h5_names != [H5_NAME] and h5_names != [shard_name(k) for k in range(len(h5_names))]:
+        raise DatasetError(path, "lines for the shards windows-00000.h5, windows-00001.h5, … without a gap",
+                           ", ".join(h5_names))
+    for required in (*h5_names, PARQUET_NAME, DATAPACKAGE_NAME):
         if required not in sums:
             raise DatasetError(path, f"a line for {required}", "none")
     return sums
 
 
-def _compare_meta(h5_path: Path, pq_path: Path, table: pa.Table, protocols: Sequence[str]) -> None:
-    """windows.h5 (y, meta/) and windows.parquet agree column by column and row by row."""
-    schema = _arrow_schema(protocols)
+def _h5_names_of(sums: dict[str, str]) -> list[str]:
+    """The HDF5 data files a checked SHA256SUMS lists: ``windows.h5``, or every shard in order."""
+    shards = sorted(n for n in sums if SHARD_RE.match(n))
+    return shards if shards and H5_NAME not in sums else [H5_NAME]
+
+
+def _compare_meta(h5_path: Path, pq_path: Path, table: pa.Table, protocols: Sequence[str],
+                  sharded: bool = False) -> None:
+    """An HDF5 file's y and meta/ agree with its rows of windows.parquet, column by column, row by row."""
+    schema = _arrow_schema(protocols, sharded)
     found = [f"{f.name}:{f.type}" for f in table.schema]
     if found != [f"{f.name}:{f.type}" for f in schema]:
         raise DatasetError(pq_path, f"the columns {[f'{f.name}:{f.type}' for f in schema]}", f"{found}")
@@ -99,25 +116,71 @@ def _compare_meta(h5_path: Path, pq_path: Path, table: pa.Table, protocols: Sequ
         bias = np.column_stack([table.column(f"bias_{a}").to_numpy() for a in "xyz"])
         if not np.array_equal(y[...], bias):
             raise DatasetError(h5_path, f"y equal to bias_x/y/z of {PARQUET_NAME}", "different values", "y")
-    if not np.array_equal(table.column("window_id").to_numpy(), np.arange(n)):
-        raise DatasetError(pq_path, "window_id = 0..N-1 in order", "other values", "window_id")
+
+
+_SHARD_ATTRS = ("shard", "shard_windows", "first_window_id")
+
+
+def _check_shards(folder: Path, h5_names: Sequence[str], prov: dict[str, Any], table: pa.Table,
+                  attrs0: dict[str, Any], protocols: Sequence[str], t: int) -> list[int]:
+    """Every shard: its header, X, and its rows of the index. Returns the windows per shard."""
+    pq_path = folder / PARQUET_NAME
+    layout = shard_layout(folder)
+    if layout is None or [name for name, _ in layout] != list(h5_names):
+        found = "none" if layout is None else ", ".join(name for name, _ in layout)
+        raise DatasetError(pq_path, f"the shards {', '.join(h5_names)} (as in {SUMS_NAME})", found,
+                           "ofbe.shards.files")
+    per = prov["shards"].get("windows_per_shard")
+    common = {k: v for k, v in attrs0.items() if k not in (*_SHARD_ATTRS, "n_windows")}
+    counts, first = [], 0
+    for i, (name, n) in enumerate(layout):
+        path = folder / name
+        attrs = _read_h5_header(path)
+        _check_version(path, attrs.get("schema_version"))
+        expected_attrs = {**common, "shard": i, "shard_windows": per, "first_window_id": first}
+        for key, value in expected_attrs.items():
+            if attrs.get(key) != value:
+                raise DatasetError(path, f"{value!r} (as in {h5_names[0]} and {PARQUET_NAME})",
+                                   repr(attrs.get(key)), key)
+        if n > per or (i < len(layout) - 1 and n != per):
+            raise DatasetError(pq_path, f"{per} windows in every shard but the last (at most {per} there)",
+                               f"{n} in {name}", "ofbe.shards.files")
+        with h5py.File(path, "r") as f:
+            x = f.get("X")
+            if not isinstance(x, h5py.Dataset) or x.dtype != np.float32 or x.shape != (n, t, 3):
+                found = f"{x.dtype} {x.shape}" if isinstance(x, h5py.Dataset) else "none"
+                raise DatasetError(path, f"float32 of shape ({n}, {t}, 3) (n_windows from {PARQUET_NAME})",
+                                   found, "X")
+        if first + n > table.num_rows:
+            raise DatasetError(pq_path, f"at least {first + n} rows (the shards' windows)",
+                               f"{table.num_rows}")
+        rows = table.slice(first, n)
+        for col, want, text in (("shard", np.full(n, i), str(i)), ("shard_row", np.arange(n), "0..n-1")):
+            if col not in rows.column_names or not np.array_equal(rows.column(col).to_numpy(), want):
+                raise DatasetError(pq_path, f"{col} = {text} on the rows of {name}", "other values", col)
+        _compare_meta(path, pq_path, rows, protocols, sharded=True)
+        counts.append(n)
+        first += n
+    return counts
 
 
 def verify_dataset(path: str | Path) -> dict[str, Any]:
     """Check a dataset folder: checksums, schema version, and that its files agree.
 
     Checks, in order: every file of ``SHA256SUMS`` exists and has its hash; the hashes and
-    sizes of ``datapackage.json``'s resources; the schema version in ``windows.h5``,
-    ``windows.parquet`` and ``datapackage.json``; the dataset description against the HDF5
-    attributes; shapes and dtypes of ``X`` and ``y``; the Parquet schema; and ``meta/`` and ``y``
-    against the Parquet columns, row by row. ``X`` itself is covered by the checksum (and by
-    its chunks' Fletcher-32 sums when read).
+    sizes of ``datapackage.json``'s resources; the schema version in ``windows.h5`` (every
+    shard of a sharded dataset), ``windows.parquet`` and ``datapackage.json``; the dataset
+    description against the HDF5 attributes; shapes and dtypes of ``X`` and ``y``; the Parquet
+    schema; and ``meta/`` and ``y`` against the Parquet columns, row by row (each shard against
+    its rows of the index). ``X`` itself is covered by the checksum (and by its chunks'
+    Fletcher-32 sums when read).
 
     Returns
     -------
     dict
         ``path``, ``schema_version``, ``name``, ``campaign``, ``n_windows``, ``n_recordings``,
-        ``n_devices``, ``window_length``, ``stride``, ``protocols`` and ``files`` (name → sha256).
+        ``n_devices``, ``window_length``, ``stride``, ``protocols``, ``n_shards`` (1 for
+        ``windows.h5``) and ``files`` (name → sha256).
 
     Raises
     ------
@@ -139,10 +202,12 @@ def verify_dataset(path: str | Path) -> dict[str, Any]:
         actual[name] = sha256_file(file)
         if actual[name] != expected:
             raise ChecksumError(file, f"sha256 {expected} (from {SUMS_NAME})", f"sha256 {actual[name]}")
-    dp_path, h5_path, pq_path = folder / DATAPACKAGE_NAME, folder / H5_NAME, folder / PARQUET_NAME
+    h5_names = _h5_names_of(sums)
+    sharded = h5_names != [H5_NAME]
+    dp_path, h5_path, pq_path = folder / DATAPACKAGE_NAME, folder / h5_names[0], folder / PARQUET_NAME
     doc = _read_json(dp_path)
     resources = {r.get("path"): r for r in doc.get("resources", []) if isinstance(r, dict)}
-    for name in (H5_NAME, PARQUET_NAME):
+    for name in (*h5_names, PARQUET_NAME):
         res = resources.get(name)
         if res is None:
             raise DatasetError(dp_path, f"a resource with path {name!r}", "none", "resources")
@@ -162,86 +227,201 @@ def verify_dataset(path: str | Path) -> dict[str, Any]:
     info = read_dataset_info(folder)
     for key in ("name", "campaign", "window_length", "stride", "protocols"):
         if prov.get(key) != attrs.get(key):
-            raise DatasetError(pq_path, f"{attrs.get(key)!r} (as in {H5_NAME})", repr(prov.get(key)), key)
+            raise DatasetError(pq_path, f"{attrs.get(key)!r} (as in {h5_names[0]})", repr(prov.get(key)), key)
     t = info.window_length
-    with h5py.File(h5_path, "r") as f:
-        x = f.get("X")
-        if not isinstance(x, h5py.Dataset) or x.dtype != np.float32 or x.shape[1:] != (t, 3):
-            found = f"{x.dtype} {x.shape}" if isinstance(x, h5py.Dataset) else "none"
-            raise DatasetError(h5_path, f"float32 of shape (N, {t}, 3)", found, "X")
-        n = int(x.shape[0])
     table = pq.read_table(pq_path)
-    if table.num_rows != n:
-        raise DatasetError(pq_path, f"{n} rows (one per window of {H5_NAME})", f"{table.num_rows}")
-    _compare_meta(h5_path, pq_path, table, list(info.protocols))
+    if sharded:
+        n = sum(_check_shards(folder, h5_names, prov, table, attrs, list(info.protocols), t))
+        if table.num_rows != n:
+            raise DatasetError(pq_path, f"{n} rows (one per window of the shards)", f"{table.num_rows}")
+    else:
+        with h5py.File(h5_path, "r") as f:
+            x = f.get("X")
+            if not isinstance(x, h5py.Dataset) or x.dtype != np.float32 or x.shape[1:] != (t, 3):
+                found = f"{x.dtype} {x.shape}" if isinstance(x, h5py.Dataset) else "none"
+                raise DatasetError(h5_path, f"float32 of shape (N, {t}, 3)", found, "X")
+            n = int(x.shape[0])
+        if table.num_rows != n:
+            raise DatasetError(pq_path, f"{n} rows (one per window of {H5_NAME})", f"{table.num_rows}")
+        _compare_meta(h5_path, pq_path, table, list(info.protocols))
+    if not np.array_equal(table.column("window_id").to_numpy(), np.arange(n)):
+        raise DatasetError(pq_path, "window_id = 0..N-1 in order", "other values", "window_id")
     keys = table.select(list(RECORDING_KEY)).to_pandas().drop_duplicates()
     return {"path": str(folder), "schema_version": SCHEMA_VERSION, "name": info.name,
             "campaign": info.campaign, "n_windows": n, "n_recordings": int(len(keys)),
             "n_devices": int(keys["device"].nunique()), "window_length": t, "stride": info.stride,
-            "protocols": list(info.protocols), "files": dict(sorted(actual.items()))}
+            "protocols": list(info.protocols), "n_shards": len(h5_names),
+            "files": dict(sorted(actual.items()))}
 
 
-@dataclass(frozen=True, eq=False)
+# ---------------------------------------------------------------------------------------------
+# Loading
+
+
+@dataclass(frozen=True)
+class Shard:
+    """One HDF5 file of a dataset and the windows (``window_id`` start:stop) it holds."""
+
+    path: Path
+    start: int
+    stop: int
+
+    @property
+    def n_windows(self) -> int:
+        """Windows in the file."""
+        return self.stop - self.start
+
+
+def _read_x(shard: Shard, out: np.ndarray | None = None) -> np.ndarray:
+    """X of one file (into ``out`` when given), with its Fletcher-32 failures as DatasetError."""
+    try:
+        with h5py.File(shard.path, "r") as f:
+            x = f["X"]
+            if out is None:
+                return np.asarray(x[...], dtype=np.float32)
+            x.read_direct(out)
+            return out
+    except OSError as exc:  # e.g. a chunk failing its Fletcher-32 checksum
+        raise DatasetError(shard.path, "readable X and y (chunks passing their Fletcher-32 checksums)",
+                           f"a read error ({exc})") from exc
+
+
 class LoadedDataset:
-    """A dataset in memory.
+    """A loaded dataset: labels and metadata in memory, X in memory or read shard by shard.
 
     Attributes
     ----------
-    X
-        float32 (N, T, 3), m/s², sensor frame.
     y
         float64 (N, 3), m/s²: the apparent-bias labels.
     meta
-        One row per window (the columns of ``windows.parquet``).
+        One row per window (the columns of ``windows.parquet``; for a sharded dataset less
+        ``shard`` and ``shard_row``, so both layouts give the same frame).
     info
         Root attributes of ``windows.h5`` (``protocols`` parsed) and ``dataset_info`` (the
-        description from ``datapackage.json``).
+        description from ``datapackage.json``); for a sharded dataset also ``shards`` (the
+        index's ``windows_per_shard`` and ``files``).
+    shards
+        The HDF5 files and their window ranges (one for ``windows.h5``; empty when built
+        from arrays).
+
+    ``X`` (float32 (N, T, 3), m/s², sensor frame) is a property: for ``windows.h5`` it is read
+    when the dataset is loaded, for a sharded dataset on first use (then kept).
     """
 
-    X: np.ndarray
-    y: np.ndarray
-    meta: pd.DataFrame
-    info: dict[str, Any]
+    def __init__(self, X: np.ndarray | None, y: np.ndarray, meta: pd.DataFrame, info: dict[str, Any],
+                 shards: Sequence[Shard] = ()) -> None:
+        if X is None and not shards:
+            raise DatasetError("LoadedDataset", "X or the shard files to read it from", "neither")
+        self._X = X
+        self.y = y
+        self.meta = meta
+        self.info = info
+        self.shards = tuple(shards)
+
+    @property
+    def X(self) -> np.ndarray:
+        """float32 (N, T, 3), m/s²: every window (read from the shards on first use)."""
+        if self._X is None:
+            t = int(self.info["window_length"])
+            x = np.empty((self.shards[-1].stop, t, 3), dtype=np.float32)
+            for shard in self.shards:
+                _read_x(shard, x[shard.start:shard.stop])
+            self._X = x
+        return self._X
+
+    @property
+    def sharded(self) -> bool:
+        """Whether the windows are in several shard files."""
+        return len(self.shards) > 1 or any(s.path.name != H5_NAME for s in self.shards)
+
+    def iter_shards(self) -> Iterator[tuple[np.ndarray, np.ndarray, pd.DataFrame]]:
+        """``(X, y, meta)`` of each HDF5 file in turn, reading one shard at a time.
+
+        Yields
+        ------
+        X : numpy.ndarray
+            float32 (n, T, 3) of the shard (a view of :attr:`X` when it is already in memory).
+        y : numpy.ndarray
+            float64 (n, 3).
+        meta : pandas.DataFrame
+            The shard's rows of :attr:`meta` (index = ``window_id``).
+        """
+        if not self.shards:
+            yield self.X, self.y, self.meta
+            return
+        for shard in self.shards:
+            x = self._X[shard.start:shard.stop] if self._X is not None else _read_x(shard)
+            yield x, self.y[shard.start:shard.stop], self.meta.iloc[shard.start:shard.stop]
+
+    def tf_dataset(self) -> Any:
+        """A ``tf.data.Dataset`` of ``(X_i, y_i)``, float32 (T, 3) and float64 (3,), in file order.
+
+        X is streamed from the HDF5 files, shard after shard, 256 windows at a time, on every
+        pass (from memory when the dataset was built from arrays). Cardinality is N.
+        TensorFlow is imported here.
+        """
+        return _tf_dataset(self.shards, self.y, int(self.info["window_length"]),
+                           None if self.shards else self.X)
 
 
 _LOADERS = ("numpy", "pandas", "tf")
+_NOT_INFO = ("n_windows", *_SHARD_ATTRS)
 
 
-def _info_dict(folder: Path) -> dict[str, Any]:
-    attrs = _read_h5_header(folder / H5_NAME)
-    attrs.pop("n_windows", None)
-    _check_version(folder / H5_NAME, attrs.get("schema_version"))
+def _layout(folder: Path) -> tuple[list[Shard], dict[str, Any] | None]:
+    """The HDF5 files of a folder with their window ranges, and the index's ``shards`` entry."""
+    layout = shard_layout(folder)
+    if layout is None:
+        return [], None
+    shards, first = [], 0
+    for name, n in layout:
+        shards.append(Shard(folder / name, first, first + n))
+        first += n
+    return shards, _read_parquet_provenance(folder / PARQUET_NAME)["shards"]
+
+
+def _info_dict(folder: Path, h5_path: Path, shards: dict[str, Any] | None) -> dict[str, Any]:
+    attrs = _read_h5_header(h5_path)
+    for key in _NOT_INFO:
+        attrs.pop(key, None)
+    _check_version(h5_path, attrs.get("schema_version"))
     pq_path = folder / PARQUET_NAME
     _check_version(pq_path, _read_parquet_provenance(pq_path).get("schema_version"))
-    return {**attrs, "dataset_info": read_dataset_info(folder).to_dict()}
+    return {**attrs, "dataset_info": read_dataset_info(folder).to_dict(),
+            **({"shards": shards} if shards is not None else {})}
 
 
 def _read_meta(folder: Path) -> pd.DataFrame:
     path = folder / PARQUET_NAME
     try:
-        return pq.read_table(path).replace_schema_metadata(None).to_pandas()
+        table = pq.read_table(path).replace_schema_metadata(None)
     except (OSError, pa.ArrowException) as exc:
         raise DatasetError(path, "a readable Parquet file", f"an unreadable one ({exc})") from exc
+    drop = [c for c in SHARD_COLUMNS if c in table.column_names]
+    return (table.drop_columns(drop) if drop else table).to_pandas()
 
 
 def load_dataset(path: str | Path, as_: str = "numpy", verify: bool = True) -> Any:
-    """Load a dataset folder.
+    """Load a dataset folder (one ``windows.h5`` or shard files).
 
     Parameters
     ----------
     path
         The dataset folder (``processed/datasets/<name>``).
     as_
-        ``"numpy"``: a :class:`LoadedDataset` (X float32 (N, T, 3), y float64 (N, 3), meta, info).
+        ``"numpy"``: a :class:`LoadedDataset` (X float32 (N, T, 3), y float64 (N, 3), meta, info);
+        for a sharded dataset X is not read until used (:meth:`LoadedDataset.iter_shards` reads
+        one shard at a time).
         ``"pandas"``: the metadata frame alone (no X); its ``bias_x/y/z`` columns are ``y``
-        (verified equal to ``windows.h5:/y``), and ``frame.attrs["ofbe"]`` holds ``info``.
+        (verified equal to the HDF5 ``y``), and ``frame.attrs["ofbe"]`` holds ``info``. The
+        index columns ``shard``/``shard_row`` of a sharded dataset are left out.
         ``"tf"``: a ``tf.data.Dataset`` of ``(X_i, y_i)`` pairs, float32 (T, 3) and float64 (3,),
         in file order. X is *streamed*: a generator (with ``output_signature``) reads 256
-        windows at a time from ``windows.h5`` on each pass, so the dataset need not fit in
+        windows at a time from the HDF5 file(s) on each pass, so the dataset need not fit in
         memory; ``y`` is held in memory. Cardinality is set to N. TensorFlow is imported here.
     verify
-        Run :func:`verify_dataset` first (checksums, schema version, agreement of the files).
-        Without it the schema version is still checked.
+        Run :func:`verify_dataset` first (checksums of every file, schema version, agreement
+        of the files). Without it the schema version is still checked.
 
     Raises
     ------
@@ -253,12 +433,23 @@ def load_dataset(path: str | Path, as_: str = "numpy", verify: bool = True) -> A
         raise DatasetError(folder, f"as_ one of {list(_LOADERS)}", repr(as_), "as_")
     if verify:
         verify_dataset(folder)
-    info = _info_dict(folder)
+    shards, index = _layout(folder)
+    h5_path = shards[0].path if shards else folder / H5_NAME
+    info = _info_dict(folder, h5_path, index)
     if as_ == "pandas":
         meta = _read_meta(folder)
         meta.attrs["ofbe"] = info
         return meta
-    h5_path = folder / H5_NAME
+    t = int(info["window_length"])
+    if shards:
+        meta = _read_meta(folder)
+        y = meta[["bias_x", "bias_y", "bias_z"]].to_numpy(dtype=np.float64)
+        if len(y) != shards[-1].stop:
+            raise DatasetError(folder / PARQUET_NAME, f"{shards[-1].stop} rows (the shards' windows)",
+                               f"{len(y)}")
+        if as_ == "tf":
+            return _tf_dataset(shards, y, t)
+        return LoadedDataset(None, y, meta, info, shards)
     if as_ == "numpy":
         try:
             with h5py.File(h5_path, "r") as f:
@@ -267,30 +458,37 @@ def load_dataset(path: str | Path, as_: str = "numpy", verify: bool = True) -> A
         except OSError as exc:  # e.g. a chunk failing its Fletcher-32 checksum
             raise DatasetError(h5_path, "readable X and y (chunks passing their Fletcher-32 checksums)",
                                f"a read error ({exc})") from exc
-        return LoadedDataset(X=x, y=y, meta=_read_meta(folder), info=info)
-    return _tf_dataset(h5_path, int(info["window_length"]))
+        return LoadedDataset(x, y, _read_meta(folder), info, (Shard(h5_path, 0, len(y)),))
+    with h5py.File(h5_path, "r") as f:
+        y = np.asarray(f["y"][...], dtype=np.float64)
+    return _tf_dataset([Shard(h5_path, 0, len(y))], y, t)
 
 
-def _window_generator(h5_path: Path, y: np.ndarray) -> Callable[[], Iterator[tuple[np.ndarray, np.ndarray]]]:
+def _window_generator(shards: Sequence[Shard], y: np.ndarray, x: np.ndarray | None,
+                      ) -> Callable[[], Iterator[tuple[np.ndarray, np.ndarray]]]:
     def gen() -> Iterator[tuple[np.ndarray, np.ndarray]]:
-        with h5py.File(h5_path, "r") as f:
-            x = f["X"]
-            for start in range(0, x.shape[0], _TF_BLOCK):
-                block = x[start:start + _TF_BLOCK]
-                for i in range(block.shape[0]):
-                    yield block[i], y[start + i]
+        if x is not None:
+            for i in range(len(y)):
+                yield x[i], y[i]
+            return
+        for shard in shards:
+            with h5py.File(shard.path, "r") as f:
+                xs = f["X"]
+                for start in range(0, xs.shape[0], _TF_BLOCK):
+                    block = xs[start:start + _TF_BLOCK]
+                    for i in range(block.shape[0]):
+                        yield block[i], y[shard.start + start + i]
 
     return gen
 
 
-def _tf_dataset(h5_path: Path, window_length: int) -> Any:
+def _tf_dataset(shards: Sequence[Shard], y: np.ndarray, window_length: int,
+                x: np.ndarray | None = None) -> Any:
     from ofbe_data.core.cli import import_tensorflow
 
     tf = import_tensorflow()
 
-    with h5py.File(h5_path, "r") as f:
-        y = np.asarray(f["y"][...], dtype=np.float64)
     signature = (tf.TensorSpec(shape=(window_length, 3), dtype=tf.float32),
                  tf.TensorSpec(shape=(3,), dtype=tf.float64))
-    ds = tf.data.Dataset.from_generator(_window_generator(h5_path, y), output_signature=signature)
+    ds = tf.data.Dataset.from_generator(_window_generator(shards, y, x), output_signature=signature)
     return ds.apply(tf.data.experimental.assert_cardinality(len(y)))

@@ -15,6 +15,16 @@ A dataset folder ``processed/datasets/<name>/`` holds
 ``SHA256SUMS``
     ``sha256sum`` lines for every other file, written last.
 
+A dataset of more than ``shard_windows`` windows (:data:`DEFAULT_SHARD_WINDOWS` unless the
+builder is told otherwise) is *sharded*: instead of ``windows.h5`` it holds
+``windows-00000.h5``, ``windows-00001.h5``, … (:func:`shard_name`), each laid out like
+``windows.h5`` for its ``shard_windows`` consecutive rows (the last one the remainder), with the
+root attributes ``shard``, ``shard_windows`` and ``first_window_id`` added. ``windows.parquet``
+is then the index of all rows: it gains the columns ``shard`` and ``shard_row`` after
+``window_id`` (:data:`SHARD_COLUMNS`, also in every shard's ``meta/``) and its provenance
+the key ``shards`` (``windows_per_shard`` and the ``files`` with their ``n_windows``). A
+dataset of at most ``shard_windows`` windows keeps the single-file layout byte for byte.
+
 Everything is deterministic: identical inputs give byte-identical files. HDF5 objects are
 created without timestamps (``track_times=False``) in a file of the earliest format
 (``libver="earliest"``): newer object headers store the modification time of groups, and
@@ -51,6 +61,9 @@ SCHEMA_VERSION = "ofbe-windows/1"
 DATASET_FORMAT = "ofbe-windows"
 
 H5_NAME = "windows.h5"
+#: Windows per shard file above which (and in which) a dataset is sharded, unless told otherwise:
+#: above the paper's datasets (at most ~2,500 windows of 3,000 samples), ~150 MB of float32 X a shard.
+DEFAULT_SHARD_WINDOWS = 4096
 PARQUET_NAME = "windows.parquet"
 DATAPACKAGE_NAME = "datapackage.json"
 README_NAME = "README.md"
@@ -68,6 +81,13 @@ _HASH_BLOCK = 1 << 20
 _TF_BLOCK = 256  # windows read from the file at a time by the tf.data generator
 _PROTOCOL_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]*$")
 _SUMS_LINE_RE = re.compile(r"^([0-9a-f]{64}) [ *](.+)$")
+SHARD_RE = re.compile(r"^windows-(\d{5})\.h5$")
+"""Names of shard files: ``windows-<5 digits>.h5``."""
+
+
+def shard_name(index: int) -> str:
+    """File name of shard ``index`` (0-based) of a sharded dataset: ``windows-00000.h5``, …."""
+    return f"windows-{index:05d}.h5"
 
 
 class DatasetError(OfbeError):
@@ -161,7 +181,9 @@ WINDOW_COLUMNS: list[str] = [c.name for c in _COLUMNS]
 _COLUMN_BY_NAME = {c.name: c for c in _COLUMNS}
 #: Columns that identify a recording's windows (one label per recording and device).
 RECORDING_KEY = ("campaign", "session", "recording", "device")
-_PER_WINDOW = ("window_id", "window_index", "start_sample")
+#: Columns of a sharded dataset's index (``windows.parquet``), right after ``window_id``.
+SHARD_COLUMNS = ("shard", "shard_row")
+_PER_WINDOW = ("window_id", "window_index", "start_sample", *SHARD_COLUMNS)
 _ARROW_TYPES = {"string": pa.string(), "int": pa.int64(), "float": pa.float64()}
 
 
@@ -187,13 +209,18 @@ def _fold_doc(protocol: str) -> _Column:
                    "ever used for training")
 
 
-def _all_columns(protocols: Sequence[str]) -> list[_Column]:
-    return [*_COLUMNS, *(_fold_doc(p) for p in protocols)]
+_SHARD_DOCS = (_Column("shard", "int", "shard file holding the window: windows-<shard, 5 digits>.h5"),
+               _Column("shard_row", "int", "row of the window within its shard file"))
 
 
-def _arrow_schema(protocols: Sequence[str]) -> pa.Schema:
+def _all_columns(protocols: Sequence[str], sharded: bool = False) -> list[_Column]:
+    shard = list(_SHARD_DOCS) if sharded else []
+    return [_COLUMNS[0], *shard, *_COLUMNS[1:], *(_fold_doc(p) for p in protocols)]
+
+
+def _arrow_schema(protocols: Sequence[str], sharded: bool = False) -> pa.Schema:
     return pa.schema([pa.field(c.name, _ARROW_TYPES[c.kind], nullable=c.nullable)
-                      for c in _all_columns(protocols)])
+                      for c in _all_columns(protocols, sharded)])
 
 
 # ---------------------------------------------------------------------------------------------
@@ -429,6 +456,52 @@ def _check_info_matches(info: DatasetInfo, attrs: Mapping[str, Any], path: Path)
                                repr(attrs.get(key)), key)
 
 
+def shard_layout(folder: str | Path) -> list[tuple[str, int]] | None:
+    """The shard files of a dataset folder and their windows, or ``None`` for the single-file layout.
+
+    A folder with ``windows.h5`` is single-file; otherwise the ``shards`` key of
+    ``windows.parquet``'s provenance lists the shards.
+
+    Returns
+    -------
+    list of (str, int) or None
+        ``[(file name, n_windows), ...]`` in shard order.
+
+    Raises
+    ------
+    DatasetError
+        A malformed ``shards`` entry, or an unreadable ``windows.parquet`` (when there is no
+        ``windows.h5``).
+    """
+    folder = Path(folder)
+    if (folder / H5_NAME).exists() or not (folder / PARQUET_NAME).is_file():
+        return None
+    pq_path = folder / PARQUET_NAME
+    shards = _read_parquet_provenance(pq_path).get("shards")
+    if shards is None:
+        return None  # a single-file dataset whose windows.h5 is missing: reported where it is opened
+    files = shards.get("files") if isinstance(shards, dict) else None
+    expected = "a list of {path: windows-<5 digits>.h5, n_windows: int >= 1} in shard order"
+    if not isinstance(files, list) or not files:
+        raise DatasetError(pq_path, expected, repr(files), "ofbe.shards.files")
+    out: list[tuple[str, int]] = []
+    for i, entry in enumerate(files):
+        ok = (isinstance(entry, dict) and entry.get("path") == shard_name(i)
+              and isinstance(entry.get("n_windows"), int) and not isinstance(entry.get("n_windows"), bool)
+              and entry["n_windows"] >= 1)
+        if not ok:
+            raise DatasetError(pq_path, expected, repr(entry), f"ofbe.shards.files[{i}]")
+        out.append((entry["path"], int(entry["n_windows"])))
+    return out
+
+
+def header_h5(folder: str | Path) -> Path:
+    """The HDF5 file whose root attributes describe the dataset: ``windows.h5``, or shard 0."""
+    folder = Path(folder)
+    layout = shard_layout(folder)
+    return folder / (H5_NAME if layout is None else layout[0][0])
+
+
 def read_dataset_info(path: str | Path) -> DatasetInfo:
     """The :class:`DatasetInfo` of a dataset folder, from ``datapackage.json`` (``ofbe.dataset_info``).
 
@@ -444,7 +517,8 @@ def read_dataset_info(path: str | Path) -> DatasetInfo:
     if not isinstance(ofbe, dict) or "dataset_info" not in ofbe:
         raise DatasetError(dp_path, "an 'ofbe' object with 'dataset_info'", "none", "ofbe")
     info = DatasetInfo.from_dict(ofbe["dataset_info"], dp_path)
-    _check_info_matches(info, _read_h5_header(folder / H5_NAME), folder / H5_NAME)
+    h5_path = header_h5(folder)
+    _check_info_matches(info, _read_h5_header(h5_path), h5_path)
     return info
 
 

@@ -1,4 +1,5 @@
-"""Writing a dataset: window metadata normalised and checked, windows streamed into HDF5 + Parquet."""
+"""Writing a dataset: window metadata normalised and checked, windows streamed into HDF5 + Parquet
+(one ``windows.h5``, or shard files ``windows-00000.h5``, … above ``shard_windows`` windows)."""
 
 from __future__ import annotations
 
@@ -37,6 +38,7 @@ from ofbe_data.dataset.store import (
     _all_columns,
     _arrow_schema,
     fold_column,
+    shard_name,
 )
 
 _MERGE_BLOCKS = 256  # metadata blocks merged into one array per column, to bound per-array overhead
@@ -182,10 +184,13 @@ def _root_attrs(info: DatasetInfo) -> dict[str, Any]:
     }
 
 
-def _parquet_provenance(info: DatasetInfo) -> dict[str, Any]:
-    return {"format": DATASET_FORMAT, "schema_version": SCHEMA_VERSION, "name": info.name,
+def _parquet_provenance(info: DatasetInfo, shards: dict[str, Any] | None = None) -> dict[str, Any]:
+    prov = {"format": DATASET_FORMAT, "schema_version": SCHEMA_VERSION, "name": info.name,
             "campaign": info.campaign, "window_length": info.window_length, "stride": info.stride,
             "units": UNITS, "protocols": info.protocols}
+    if shards is not None:  # only for sharded datasets: single-file ones keep their bytes
+        prov["shards"] = shards
+    return prov
 
 
 def _parquet_bytes(table: pa.Table) -> bytes:
@@ -195,7 +200,7 @@ def _parquet_bytes(table: pa.Table) -> bytes:
 
 
 class WindowWriter:
-    """Write ``windows.h5`` and ``windows.parquet`` window block by window block, then the rest.
+    """Write ``windows.h5`` (or its shards) and ``windows.parquet`` block by block, then the rest.
 
     Use as a context manager inside :func:`ofbe_data.core.atomic.atomic_directory`::
 
@@ -204,43 +209,72 @@ class WindowWriter:
                 writer.append(X, meta)
 
     ``X`` goes to the HDF5 file at once and is not kept; only the (small) metadata is held
-    until the end. On a clean exit the writer completes ``windows.h5`` (``y`` and ``meta/``),
+    until the end. On a clean exit the writer completes the HDF5 file (``y`` and ``meta/``),
     writes ``windows.parquet`` and then :func:`write_package_files`. On an exception it closes
     the HDF5 file, removes its temporary name and re-raises; the caller discards the folder.
+
+    With ``shard_windows`` = S, the (S+1)-th window starts a new file: the full one is completed
+    (``y``, ``meta/`` of its rows, the shard attributes), closed and named ``windows-00000.h5``,
+    and so on; blocks that straddle a boundary are split. At most one shard file is open, and
+    no X is held. A dataset of at most S windows is written exactly as without sharding.
 
     Parameters
     ----------
     folder
-        Existing folder to write into; it must not hold ``windows.h5`` or ``windows.parquet``.
+        Existing folder to write into; it must not hold ``windows.h5``, a shard or
+        ``windows.parquet``.
     info
         What the dataset is.
+    shard_windows
+        Windows per shard file; ``None`` (the default): one file whatever the size.
     """
 
-    def __init__(self, folder: str | Path, info: DatasetInfo) -> None:
+    def __init__(self, folder: str | Path, info: DatasetInfo, shard_windows: int | None = None) -> None:
         self.folder = Path(folder)
         self.info = info
+        if shard_windows is not None and (isinstance(shard_windows, bool)
+                                          or not isinstance(shard_windows, int | np.integer)
+                                          or shard_windows < 1):
+            raise DatasetError(self.folder, "shard_windows an integer >= 1 (or None: one file)",
+                               repr(shard_windows), "shard_windows")
+        self.shard_windows = None if shard_windows is None else int(shard_windows)
         self._h5_path = self.folder / H5_NAME
         self._parquet_path = self.folder / PARQUET_NAME
         self._tmp_h5 = self.folder / f".{H5_NAME}.partial"
         self._file: h5py.File | None = None
         self._x: h5py.Dataset | None = None
+        self._closed: list[dict[str, np.ndarray]] = []  # metadata of the completed shards
         self._blocks: list[dict[str, np.ndarray]] = []  # metadata only (1-D arrays), merged in batches
         self._pending: list[dict[str, np.ndarray]] = []
         self._n = 0
+        self._shard = 0  # index of the open file
+        self._shard_n = 0  # windows in the open file
+        self._entered = False
 
     @property
     def n_windows(self) -> int:
         """Windows appended so far."""
         return self._n
 
+    @property
+    def n_shards(self) -> int:
+        """HDF5 files begun so far (1 until the first shard is full and another window comes)."""
+        return self._shard + 1
+
     def __enter__(self) -> WindowWriter:
         if not self.folder.is_dir():
             raise DatasetError(self.folder, "an existing folder to write the dataset into", "none")
-        for p in (self._h5_path, self._parquet_path):
+        for p in (self._h5_path, self.folder / shard_name(0), self._parquet_path):
             if p.exists():
                 raise DatasetError(p, "a folder without this file (a fresh dataset)", "an existing file")
-        if self._file is not None:
+        if self._entered:
             raise DatasetError(self._h5_path, "a writer entered once", "a second `with`")
+        self._entered = True
+        self._open()
+        return self
+
+    def _open(self) -> None:
+        """Create the next HDF5 file under its temporary name, with the root attributes and X."""
         t = self.info.window_length
         self._file = h5py.File(self._tmp_h5, "w", libver=H5_LIBVER)
         try:
@@ -254,7 +288,6 @@ class WindowWriter:
         except BaseException:
             self._abort()
             raise
-        return self
 
     def _need_space(self, nbytes: int, what: str) -> None:
         """Refuse, before HDF5 sees a full disk (it may then crash the process), when the
@@ -276,7 +309,7 @@ class WindowWriter:
         meta
             n rows: :data:`WINDOW_COLUMNS` less ``window_id`` plus one ``fold_<protocol>``
             column per protocol. ``y`` is taken from ``bias_x/y/z``; ``window_id`` is assigned
-            here (the running row index).
+            here (the running row index), and so are ``shard``/``shard_row`` when sharded.
 
         Raises
         ------
@@ -304,14 +337,83 @@ class WindowWriter:
         if n == 0:
             return
         self._need_space(x32.nbytes, f"{n} more windows")
-        start = self._n
+        done = 0
+        while done < n:
+            if self.shard_windows is not None and self._shard_n == self.shard_windows:
+                self._next_shard()
+            room = n - done
+            if self.shard_windows is not None:
+                room = min(room, self.shard_windows - self._shard_n)
+            self._write_x(x32[done:done + room])
+            self._pending.append(cols if room == n else {k: v[done:done + room] for k, v in cols.items()})
+            if len(self._pending) >= _MERGE_BLOCKS:
+                self._blocks.append(_merge(self._pending))
+                self._pending = []
+            done += room
+            self._shard_n += room
+            self._n += room
+
+    def _write_x(self, x32: np.ndarray) -> None:
+        assert self._x is not None
+        start, n = self._shard_n, x32.shape[0]
         self._x.resize(start + n, axis=0)
         self._x[start:start + n] = x32
-        self._pending.append(cols)
-        if len(self._pending) >= _MERGE_BLOCKS:
-            self._blocks.append(_merge(self._pending))
-            self._pending = []
-        self._n = start + n
+
+    def _shard_cols(self, sharded: bool) -> dict[str, np.ndarray]:
+        """The open file's metadata, merged, with ``window_id`` (and the shard columns) in front."""
+        n, first = self._shard_n, self._n - self._shard_n
+        cols = {"window_id": np.arange(first, first + n, dtype=np.int64)}
+        if sharded:
+            cols["shard"] = np.full(n, self._shard, dtype=np.int64)
+            cols["shard_row"] = np.arange(n, dtype=np.int64)
+        cols.update(_merge([*self._blocks, *self._pending]))
+        self._blocks, self._pending = [], []
+        return cols
+
+    def _next_shard(self) -> None:
+        """Complete the full open file as a shard and open the next one."""
+        cols = self._shard_cols(sharded=True)
+        self._need_space(2 * sum(v.nbytes for v in cols.values()), "a shard's labels and metadata")
+        self._complete(cols, sharded=True)
+        self._closed.append(cols)
+        self._shard += 1
+        self._shard_n = 0
+        self._tmp_h5 = self.folder / f".{shard_name(self._shard)}.partial"
+        self._open()
+
+    def _complete(self, cols: Mapping[str, np.ndarray], sharded: bool) -> None:
+        """Write ``y`` and ``meta/`` of the open file's rows, close it and give it its name."""
+        assert self._file is not None
+        f = self._file
+        n = self._shard_n
+        columns = _all_columns(list(self.info.protocols), sharded)
+        y = np.column_stack([cols["bias_x"], cols["bias_y"], cols["bias_z"]]).astype(np.float64)
+        ds_y = f.create_dataset("y", data=y, chunks=(min(n, 4096), 3), compression="gzip",
+                                compression_opts=4, shuffle=True, fletcher32=True, track_times=False)
+        _set_attrs(ds_y, {"units": UNITS, "frame": FRAME, "description":
+                          "apparent-bias label b_app of the window's recording (bias_x/y/z), sensor frame"})
+        group = f.create_group("meta")
+        group.attrs["columns"] = json.dumps([c.name for c in columns])
+        group.attrs["description"] = (
+            "one dataset per column of windows.parquet, same row order; NaN = null" if not sharded else
+            "one dataset per column of windows.parquet for this shard's rows, same order; NaN = null")
+        for col in columns:
+            values = cols[col.name]
+            if col.kind == "string":
+                ds = group.create_dataset(col.name, data=values, dtype=h5py.string_dtype("utf-8"),
+                                          track_times=False)
+            else:
+                ds = group.create_dataset(col.name, data=values, track_times=False)
+            ds.attrs["description"] = col.description
+            if col.unit is not None:
+                ds.attrs["units"] = col.unit
+        if sharded:
+            _set_attrs(f, {"shard": np.int64(self._shard), "shard_windows": np.int64(self.shard_windows),
+                           "first_window_id": np.int64(cols["window_id"][0])})
+        f.close()
+        self._file = None
+        self._x = None
+        os.replace(self._tmp_h5, self.folder / (shard_name(self._shard) if sharded else H5_NAME))
 
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
                  tb: object) -> None:
@@ -339,38 +441,24 @@ class WindowWriter:
             raise DatasetError(self._h5_path, "a writer inside `with`", "a closed writer")
         if self._n == 0:
             raise DatasetError(self._h5_path, "at least one window", "0 windows appended")
-        names = [c.name for c in _all_columns(list(self.info.protocols))]
-        cols = {"window_id": np.arange(self._n, dtype=np.int64), **_merge([*self._blocks, *self._pending])}
-        self._blocks, self._pending = [], []
+        sharded = self._shard > 0
+        last = self._shard_cols(sharded)
+        cols = _merge([*self._closed, last]) if sharded else last
         _check_recordings(cols, self._parquet_path)
-        y = np.column_stack([cols["bias_x"], cols["bias_y"], cols["bias_z"]]).astype(np.float64)
-        self._need_space(2 * sum(v.nbytes for v in cols.values()) + y.nbytes, "the labels and metadata")
-        f = self._file
-        ds_y = f.create_dataset("y", data=y, chunks=(min(self._n, 4096), 3), compression="gzip",
-                                compression_opts=4, shuffle=True, fletcher32=True, track_times=False)
-        _set_attrs(ds_y, {"units": UNITS, "frame": FRAME, "description":
-                          "apparent-bias label b_app of the window's recording (bias_x/y/z), sensor frame"})
-        group = f.create_group("meta")
-        group.attrs["columns"] = json.dumps(names)
-        group.attrs["description"] = "one dataset per column of windows.parquet, same row order; NaN = null"
-        for col in _all_columns(list(self.info.protocols)):
-            values = cols[col.name]
-            if col.kind == "string":
-                ds = group.create_dataset(col.name, data=values, dtype=h5py.string_dtype("utf-8"),
-                                          track_times=False)
-            else:
-                ds = group.create_dataset(col.name, data=values, track_times=False)
-            ds.attrs["description"] = col.description
-            if col.unit is not None:
-                ds.attrs["units"] = col.unit
-        f.close()
-        self._file = None
-        self._x = None
-        os.replace(self._tmp_h5, self._h5_path)
-        schema = _arrow_schema(list(self.info.protocols))
+        self._need_space(2 * sum(v.nbytes for v in cols.values()) + 3 * 8 * len(last["window_id"]),
+                         "the labels and metadata")
+        self._complete(last, sharded)
+        shards = None
+        if sharded:
+            self._closed.append(last)
+            shards = {"windows_per_shard": self.shard_windows,
+                      "files": [{"path": shard_name(i), "n_windows": int(len(c["window_id"]))}
+                                for i, c in enumerate(self._closed)]}
+        self._closed = []
+        schema = _arrow_schema(list(self.info.protocols), sharded)
         arrays = [pa.array(cols[fld.name].tolist() if fld.type == pa.string() else cols[fld.name],
                            type=fld.type, from_pandas=True) for fld in schema]
         table = pa.Table.from_arrays(arrays, schema=schema).replace_schema_metadata(
-            {b"ofbe": json.dumps(_parquet_provenance(self.info), allow_nan=False).encode()})
+            {b"ofbe": json.dumps(_parquet_provenance(self.info, shards), allow_nan=False).encode()})
         write_bytes_atomic(self._parquet_path, _parquet_bytes(table))
         write_package_files(self.folder, self.info)

@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ofbe_data.core.errors import OfbeError
-from ofbe_data.core.parallel import map_progress
+from ofbe_data.core.parallel import TaskFailure, map_progress
 from ofbe_data.io.manifest import MANIFEST_NAME, load_manifest
 from ofbe_data.labelling.labels import (
     LabelParams,
@@ -143,7 +143,7 @@ def _run_one(args: tuple[Path, LabelParams]) -> Outcome:
 
 
 def label_sessions(folders: Sequence[Path], params: LabelParams, out_dir: Path, jobs: int = 1,
-                   progress: bool = True) -> list[Outcome]:
+                   progress: bool = True, scheduler: str = "processes") -> list[Outcome]:
     """Label sessions (in parallel), fit each campaign, write the products.
 
     Parameters
@@ -158,13 +158,17 @@ def label_sessions(folders: Sequence[Path], params: LabelParams, out_dir: Path, 
         Worker processes.
     progress
         Show a progress bar (when more than one session).
+    scheduler
+        Where the sessions are labelled: ``processes``, ``dask`` or ``tcp://host:port``
+        (:func:`ofbe_data.core.parallel.map_progress`).
 
     Returns
     -------
     list of Outcome
         In the order of ``folders``. Two folders with the same (campaign, session) id both
-        fail without being labelled; a failed session's label files from an earlier run are
-        removed (``Outcome.removed``).
+        fail without being labelled; a session whose worker process died fails with that
+        reason; a failed session's label files from an earlier run are removed
+        (``Outcome.removed``).
 
     Raises
     ------
@@ -174,8 +178,10 @@ def label_sessions(folders: Sequence[Path], params: LabelParams, out_dir: Path, 
     """
     dup = _duplicates(folders)
     todo = [f for f in folders if f not in dup]
-    done = dict(zip(todo, map_progress(_run_one, [(f, params) for f in todo], jobs=jobs, desc="labelling",
-                                       unit="session", progress=progress), strict=True))
+    results = map_progress(_run_one, [(f, params) for f in todo], jobs=jobs, desc="labelling", unit="session",
+                           progress=progress, scheduler=scheduler, on_error="collect")
+    done = {f: (Outcome(f, error=f"{f}: {r.reason}") if isinstance(r, TaskFailure) else r)
+            for f, r in zip(todo, results, strict=True)}
     outcomes = [done.get(f) or Outcome(f, error=dup[f]) for f in folders]
     for o in outcomes:
         if o.error:

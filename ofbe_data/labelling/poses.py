@@ -345,14 +345,20 @@ def static_runs(quiet: np.ndarray, window: int) -> np.ndarray:
 
 
 def _trim_runs(runs: np.ndarray, fs_hz: float, params: PoseParams) -> list[tuple[int, int]]:
-    """Trim ``margin_s`` from both ends of each (R, 2) run; keep those still ``min_pose_s`` long.
+    """Keep the (R, 2) runs that stay still ``min_pose_s`` long, and trim ``margin_s`` from both
+    ends of each (at least a quarter of the run is kept).
+
+    The minimum is the length of the still run, as a person timing the pose would measure it
+    (methods.md §8: a minimum pose length, and a margin trimmed at both ends); the margin only
+    keeps the settling after set-down and the start of the next turn out of the mean.
 
     Returns half-open sample ranges, in the order given.
     """
-    margin = int(round(params.margin_s * fs_hz))
     shortest = max(1, int(math.ceil(params.min_pose_s * fs_hz - 1e-9)))
+    length = runs[:, 1] - runs[:, 0]
+    margin = np.minimum(int(round(params.margin_s * fs_hz)), (length * 3) // 8)
     starts, stops = runs[:, 0] + margin, runs[:, 1] - margin
-    keep = stops - starts >= shortest
+    keep = length >= shortest
     return [(int(a), int(b)) for a, b in zip(starts[keep], stops[keep], strict=True)]
 
 

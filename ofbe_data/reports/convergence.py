@@ -29,7 +29,7 @@ from ofbe_data import __version__
 from ofbe_data.core.atomic import atomic_directory, write_bytes_atomic
 from ofbe_data.core.errors import ConfigError, OfbeError
 from ofbe_data.core.figures import new_figure, save_png
-from ofbe_data.core.parallel import map_progress
+from ofbe_data.core.parallel import TaskFailure, map_progress
 from ofbe_data.dataset.windows import load_segments
 from ofbe_data.io.typedconfig import from_plain
 from ofbe_data.labelling.allan import AllanResult, allan_deviation, combine, white_noise_level
@@ -123,7 +123,8 @@ def _analyse_session(args: tuple[Path, LabelParams]) -> tuple[Path, list[dict[st
     return folder, rows, allan, [rj.reason for rj in labels.rejections], ""
 
 
-def analyse(folders: Sequence[Path], params: LabelParams, jobs: int = 1, progress: bool = True) -> Analysis:
+def analyse(folders: Sequence[Path], params: LabelParams, jobs: int = 1, progress: bool = True,
+            scheduler: str = "processes") -> Analysis:
     """Label sessions without the length floor and gather convergence and Allan data.
 
     Parameters
@@ -136,15 +137,26 @@ def analyse(folders: Sequence[Path], params: LabelParams, jobs: int = 1, progres
         Worker processes.
     progress
         Show a progress bar.
+    scheduler
+        Where the sessions are analysed: ``processes``, ``dask`` or ``tcp://host:port``
+        (:func:`ofbe_data.core.parallel.map_progress`).
 
     Returns
     -------
     Analysis
+
+    Raises
+    ------
+    OfbeError
+        A session could not be labelled, or its worker failed (the first such session named,
+        with how many more failed).
     """
     params = dataclasses.replace(params, min_samples=2)
     work = [(f, params) for f in folders]
-    results = map_progress(_analyse_session, work, jobs=jobs, desc="convergence", unit="session",
-                           progress=progress)
+    results = [(folders[r.item_index], [], [], [], f"{folders[r.item_index]}: {r.reason}")
+               if isinstance(r, TaskFailure) else r
+               for r in map_progress(_analyse_session, work, jobs=jobs, desc="convergence", unit="session",
+                                     progress=progress, scheduler=scheduler, on_error="collect")]
     rows: list[dict[str, Any]] = []
     per_device: dict[str, list[AllanResult]] = {}
     folder_of: dict[tuple[str, str], Path] = {}

@@ -10,7 +10,7 @@ label fidelity (labels against the simulator's truth, :func:`ofbe_data.dataset.f
 4. the small-angle thresholds (``reports/small_angle/small_angle.json``) and figures;
 5. label fidelity per simulated campaign (``processed/labels/<campaign>`` against ``raw/<campaign>/_truth``);
 6. the datasets (``processed/datasets/<campaign>/datapackage.json``) with their cards;
-7. OFBENet training (``models/<dataset>/<protocol>/training.json``);
+7. OFBENet training (``models/cv/<dataset>/<protocol>/training.json``);
 8. stage times, when a timings file is given.
 
 Every link is relative to ``reports/`` (the page lives there) and only points at files that
@@ -385,9 +385,9 @@ def _training_line(page: _Page, path: Path) -> str:
 
 def _training_section(page: _Page) -> list[str]:
     lines = ["## OFBENet training", ""]
-    files = sorted((page.root / "models").glob("*/*/training.json"))
+    files = sorted((page.root / "models" / "cv").glob("*/*/training.json"))
     if not files:
-        return lines + ["No trained models (no `models/<dataset>/<protocol>/training.json`).", ""]
+        return lines + ["No trained models (no `models/cv/<dataset>/<protocol>/training.json`).", ""]
     return lines + [_training_line(page, p) for p in files] + [""]
 
 

@@ -101,7 +101,8 @@ def _write_one(args: tuple[SimConfig, CampaignDraw, int, str, np.random.SeedSequ
 
 def simulate_campaign(config: str | Path | SimConfig, out: str | Path, *, seed: int | None = None,
                       jobs: int = 1, force: bool = False, progress: bool = True,
-                      overrides: dict[str, Any] | None = None) -> CampaignResult:
+                      overrides: dict[str, Any] | None = None,
+                      scheduler: str = "processes") -> CampaignResult:
     """Write a simulated campaign: one folder per session plus ``_truth/``.
 
     The campaign is built in a temporary folder beside ``out`` and renamed into place
@@ -123,6 +124,9 @@ def simulate_campaign(config: str | Path | SimConfig, out: str | Path, *, seed: 
         Show a progress bar on stderr.
     overrides
         Keys merged over the configuration (e.g. ``{"reference_format": "mscip-bin"}``).
+    scheduler
+        Where the sessions are written: ``processes``, ``dask`` or ``tcp://host:port``
+        (:func:`ofbe_data.core.parallel.map_progress`; the workers must see ``out``'s folder).
 
     Returns
     -------
@@ -134,6 +138,8 @@ def simulate_campaign(config: str | Path | SimConfig, out: str | Path, *, seed: 
         Invalid configuration.
     OutputExistsError
         ``out`` exists and ``force`` is False.
+    TaskError
+        A session's worker process died (the campaign is not written).
     """
     if isinstance(config, SimConfig):
         cfg = load_config_from(config, overrides) if overrides else config
@@ -154,7 +160,8 @@ def simulate_campaign(config: str | Path | SimConfig, out: str | Path, *, seed: 
         tasks = [(cfg, draw, i, campaign, sess_seqs[i], garble_seqs[i], tmp)
                  for i in range(cfg.sessions)]
         written = map_progress(_write_one, tasks, jobs=min(jobs, os.cpu_count() or 1),
-                               desc=f"simulate {campaign}", unit="session", progress=progress)
+                               desc=f"simulate {campaign}", unit="session", progress=progress,
+                               scheduler=scheduler, name=lambda t: f"session {session_name(cfg, t[2])}")
         files, size = sum(f for f, _ in written), sum(s for _, s in written)
         text = yaml.safe_dump(truth_config(cfg, seed, campaign), sort_keys=False)
         write_bytes_atomic(tmp / "_truth" / "simulation.yaml", text.encode())

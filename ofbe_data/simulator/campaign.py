@@ -26,11 +26,14 @@ from ofbe_data.io.manifest import (
     SessionManifest,
     Site,
 )
+from ofbe_data.simulator import continuous
 from ofbe_data.simulator.config import SimConfig, config_to_dict
+from ofbe_data.simulator.continuous import Motion
 from ofbe_data.simulator.physics import (
     MG,
     axis_vector,
     gauss_markov,
+    level_nominal,
     plate_direction,
     random_unit_vectors,
     sensor_matrix,
@@ -111,13 +114,15 @@ class Setting:
 
 @dataclass(frozen=True)
 class CampaignDraw:
-    """Everything drawn once per campaign."""
+    """Everything drawn once per campaign (``poses``: per session and recording, the (K, 3)
+    pose directions of continuous recordings, whose ``settings`` hold the first pose)."""
 
     devices: dict[str, DeviceDraw]
     reference_A: np.ndarray | None
     settings: list[list[Setting]]
     g_local: float
     site: Site
+    poses: list[list[np.ndarray]] | None = None
 
 
 def _site(cfg: SimConfig) -> Site:
@@ -228,7 +233,7 @@ def draw_campaign(cfg: SimConfig, seed_seq: np.random.SeedSequence) -> CampaignD
         ppm = float(rng.uniform(-m.clock_ppm, m.clock_ppm))
         nominal = np.asarray(d.reference_to_sensor, dtype=float)
         if cfg.tilts.mode == "level":
-            nominal = _level_nominal(d.up_axis)
+            nominal = level_nominal(d.up_axis)
         devices[d.id] = DeviceDraw(d.id, sensor_matrix(scale, nonorth), misalignment, nominal,
                                    offset, ppm)
     ref_a = None
@@ -236,27 +241,19 @@ def draw_campaign(cfg: SimConfig, seed_seq: np.random.SeedSequence) -> CampaignD
         rm = cfg.reference_model
         ref_a = sensor_matrix(rng.normal(0.0, rm.scale_sigma, 3),
                               rng.normal(0.0, np.radians(rm.cross_axis_sigma_deg), 3))
+    plans = None
     if cfg.tilts.mode == "rotated":
         settings = _rotated_settings(cfg, rng)
+    elif cfg.continuous is not None:
+        plans = continuous.draw_pose_plans(cfg, rng)
+        settings = [[Setting(0.0, 0.0, p[0]) for p in row] for row in plans]
     elif cfg.tilts.mode == "multi-position":
         settings = _multi_position_settings(cfg, rng)
     else:
         level = Setting(0.0, 0.0, np.array([0.0, 0.0, 1.0]))
         settings = [[level] * cfg.recordings_per_session for _ in range(cfg.sessions)]
     site = _site(cfg)
-    return CampaignDraw(devices, ref_a, settings, site.g_local, site)
-
-
-def _level_nominal(up_axis: str) -> np.ndarray:
-    """Rotation taking the level plate's +z (up) to the device's ``up_axis``."""
-    target = axis_vector(up_axis)
-    z = np.array([0.0, 0.0, 1.0])
-    if np.allclose(target, z):
-        return np.eye(3)
-    if np.allclose(target, -z):
-        return np.diag([1.0, -1.0, -1.0])
-    axis = np.cross(z, target)
-    return small_rotation(axis / norm3(axis) * np.pi / 2)
+    return CampaignDraw(devices, ref_a, settings, site.g_local, site, plans)
 
 
 # --------------------------------------------------------------------------- sessions
@@ -342,6 +339,14 @@ def _timeline(cfg: SimConfig, rng: np.random.Generator) -> _Timeline:
     return _Timeline(total, (tap1, tap2), (tap1 + tc.margin_s, tap2 - tc.margin_s), windows)
 
 
+def _continuous_timeline(cfg: SimConfig, motion: Motion, rng: np.random.Generator) -> _Timeline:
+    """A continuous recording's times: no taps, its first pose as the stationary part."""
+    stagger = min(cfg.taps.start_stagger_s, 0.5 * min(motion.lead, motion.tail))
+    windows = {d.id: (float(rng.uniform(0.0, stagger)), motion.total - float(rng.uniform(0.0, stagger)))
+               for d in cfg.duts}
+    return _Timeline(motion.total, (), (float(motion.rests[0, 0]), float(motion.rests[0, 1])), windows)
+
+
 def _taps(cfg: SimConfig, timeline: _Timeline, rng: np.random.Generator) -> list[dict[str, Any]]:
     tc = cfg.taps
     return [{"t": t, "amplitude": float(rng.uniform(*tc.amplitude_g)) * G0,
@@ -361,8 +366,10 @@ def _tap_sum(t: np.ndarray, taps: list[dict[str, Any]], rotation: np.ndarray, de
 def _simulate_dut(cfg: SimConfig, draw: CampaignDraw, dev: DeviceDraw, setting: Setting,
                   timeline: _Timeline, taps: list[dict[str, Any]], t_rec: float,
                   t_power: float, uptime0: float, ppm: float, b_on: np.ndarray,
-                  rng: np.random.Generator, base_utc: datetime) -> DutFile:
-    """One DUT file: polls on the logger's clock, the error model, quantisation."""
+                  rng: np.random.Generator, base_utc: datetime, motion: Motion | None = None,
+                  ) -> DutFile:
+    """One DUT file: polls on the logger's clock, the error model, quantisation (``motion``: a
+    continuous recording's, else the device rests in ``setting`` between the taps)."""
     m = cfg.dut_model
     rate = 1.0 + ppm * 1e-6
     start, end = timeline.dut_window[dev.id]
@@ -386,8 +393,12 @@ def _simulate_dut(cfg: SimConfig, draw: CampaignDraw, dev: DeviceDraw, setting: 
     since_power = t_local + t_rec - t_power
     warm = np.exp(-since_power / m.warmup_tau_s)[:, None] * (np.asarray(m.warmup_mg) * MG)
     bias = dev.offset_device + b_on + drift + warm
-    specific = draw.g_local * u_sensor[None, :] + _tap_sum(t_local, taps, dev.mount_rotation,
-                                                            cfg.taps.decay_s)
+    if motion is None:
+        specific = draw.g_local * u_sensor[None, :] + _tap_sum(t_local, taps, dev.mount_rotation,
+                                                                cfg.taps.decay_s)
+    else:
+        specific = continuous.specific_force(motion, t_local, dev.nominal, dev.misalignment,
+                                             dev.mount_rotation, draw.g_local)
     noise = rng.standard_normal((n, 3)) * (np.asarray(m.noise_mg) * MG)
     f = mul3(specific, dev.A.T) + bias + noise
     limit = int(round(m.range_g * m.lsb_per_g))
@@ -424,6 +435,9 @@ def _simulate_dut(cfg: SimConfig, draw: CampaignDraw, dev: DeviceDraw, setting: 
         "boot_lines": len(boot),
         "saturated_samples": int(((counts == -limit) | (counts == limit - 1)).any(axis=1).sum()),
     }
+    if motion is not None:  # the legacy keys above hold the first pose
+        truth["poses"] = continuous.pose_truth(motion, t_local, bias, dev.nominal, dev.misalignment,
+                                               dev.A, draw.g_local, clock_offset, rate)
     return DutFile(dev.id, t_us, counts, header, boot, truth)
 
 
@@ -499,16 +513,20 @@ def simulate_session(cfg: SimConfig, draw: CampaignDraw, index: int, campaign: s
     for r, setting in enumerate(draw.settings[index]):
         rid = f"rec-{r + 1:02d}"
         t_rec = float(np.round(t_rec, 3))
-        timeline = _timeline(cfg, rng)
-        taps = _taps(cfg, timeline, rng) if cfg.taps.enabled else []
+        motion = None if draw.poses is None else continuous.draw_motion(cfg, draw.poses[index][r], rng)
+        if motion is None:
+            timeline = _timeline(cfg, rng)
+            taps = _taps(cfg, timeline, rng) if cfg.taps.enabled else []
+            nominal = {"roll_deg": setting.nominal_roll_deg, "pitch_deg": setting.nominal_pitch_deg}
+        else:  # many poses, no tripod setting to name
+            timeline, taps, nominal = _continuous_timeline(cfg, motion, rng), [], {}
         files = {dev: f"{rid}/{dev}.{'bin' if devices[dev].format == 'mscip-bin' else 'csv'}"
                  for dev in devices}
-        nominal = {"roll_deg": setting.nominal_roll_deg, "pitch_deg": setting.nominal_pitch_deg}
         recordings.append(RecordingSpec(rid, files, nominal))
         dev_truth: dict[str, Any] = {}
         for d in cfg.duts:
             f = _simulate_dut(cfg, draw, draw.devices[d.id], setting, timeline, taps, t_rec,
-                              t_power, uptime0[d.id], ppm[d.id], b_on[d.id], rng, base_utc)
+                              t_power, uptime0[d.id], ppm[d.id], b_on[d.id], rng, base_utc, motion)
             dut_files[(rid, d.id)] = f
             dev_truth[d.id] = f.truth
         if cfg.reference is not None:
@@ -526,6 +544,7 @@ def simulate_session(cfg: SimConfig, draw: CampaignDraw, index: int, campaign: s
             "taps_t_ref": list(timeline.taps),
             "stationary_t_ref": list(timeline.stationary),
             "devices": dev_truth,
+            **(continuous.recording_truth(motion) if motion is not None else {}),
         }
         t_rec += timeline.total + REPOSITION_S
     manifest = SessionManifest(folder, campaign, name, cfg.kind, draw.site, index + 1, devices,
@@ -565,8 +584,6 @@ def simulate_session(cfg: SimConfig, draw: CampaignDraw, index: int, campaign: s
         "devices": dev_info, "recordings": rec_truth,
     }
     return SessionData(manifest, dut_files, ref_files, truth)
-
-
 
 
 def truth_config(cfg: SimConfig, seed: int, campaign: str) -> dict[str, Any]:

@@ -4,6 +4,11 @@ A configuration is a YAML mapping. It may name a base ``profile`` (built-in or a
 its own keys are then merged over the base, key by key. Unknown keys and values of the
 wrong type are errors (:class:`~ofbe_data.core.errors.ConfigError`) naming the key.
 docs/sensor-model.md gives the source of every default.
+
+``duts`` is a list of devices, a mapping ``{id: {...}}``, or, for fleets, the compact form
+``{count: 300, prefix: unit-}`` (:func:`expand_duts`): ``count`` devices ``unit-001`` …
+``unit-300``, optionally with ``start`` (first number, 1), ``digits`` (3) and the settings every
+device shares (``up_axis``, ``reference_to_sensor``).
 """
 
 from __future__ import annotations
@@ -15,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from ofbe_data.core.errors import ConfigError
+from ofbe_data.io.manifest import ID_PATTERN
 from ofbe_data.io.typedconfig import deep_merge, from_plain
 from ofbe_data.io.yamlio import YamlDocument, YamlProblem, read_yaml
 
@@ -123,6 +129,40 @@ class TapConfig:
 
 
 @dataclass(frozen=True)
+class ContinuousConfig:
+    """Continuous multi-position recordings: many poses per recording, handling between them.
+
+    Each recording holds K poses (K uniform in ``poses``), the device resting ``pose_s`` in
+    each and turned by hand for ``handling_s`` between them (a minimum-jerk rotation with a
+    wobble, a lift, tremor and the jolts of taking and setting down the device). A recording
+    starts at rest in its first pose (a quiet stretch of ``quiet_s`` more; probability
+    ``quiet_start_prob``) or with the device being handled into it; it ends with the device
+    picked up. No taps: ``taps`` and ``stationary_s`` do not apply (``taps.start_stagger_s``
+    still staggers the loggers' starts).
+
+    Attributes
+    ----------
+    poses
+        Fewest and most poses per recording (integers, inclusive).
+    pose_s
+        Rest in each pose, s (uniform range).
+    handling_s
+        Handling between two poses, before the first (recordings that start moving) and after
+        the last, s (uniform range).
+    quiet_s
+        Quiet stretch before the first pose's ``pose_s`` in recordings that start at rest, s.
+    quiet_start_prob
+        Probability that a recording starts at rest rather than moving.
+    """
+
+    poses: tuple[int, int] = (6, 40)
+    pose_s: Range = (1.0, 10.0)
+    handling_s: Range = (1.0, 4.0)
+    quiet_s: Range = (1.0, 3.0)
+    quiet_start_prob: float = 0.5
+
+
+@dataclass(frozen=True)
 class SimConfig:
     """A whole simulated campaign.
 
@@ -151,6 +191,9 @@ class SimConfig:
     reference_format
         File format of the reference's recordings: ``mscip-csv`` (the default) or ``mscip-bin``
         (the MSCIP byte stream, ``<reference id>.bin``).
+    continuous
+        Multi-position campaigns only: recordings of many poses with handling between them
+        (:class:`ContinuousConfig`); None (the default) → one pose per recording, between taps.
     """
 
     kind: str = "rotated"
@@ -170,6 +213,7 @@ class SimConfig:
     tilts: TiltConfig = TiltConfig()
     taps: TapConfig = TapConfig()
     reference_format: str = "mscip-csv"
+    continuous: ContinuousConfig | None = None
 
 
 REFERENCE_FORMATS = ("mscip-csv", "mscip-bin")
@@ -270,7 +314,93 @@ def _check(cfg: SimConfig, source: str) -> SimConfig:
     if m.jitter_s * m.rate_hz >= 0.25:
         raise ConfigError(source, "dut_model.jitter_s", "less than a quarter sample period",
                           repr(m.jitter_s))
+    if cfg.continuous is not None:
+        _check_continuous(cfg.continuous, cfg.kind, source)
     return cfg
+
+
+MAX_POSES = 1000
+"""Most poses per continuous recording."""
+
+
+def _check_continuous(c: ContinuousConfig, kind: str, source: str) -> None:
+    """Semantic checks of the ``continuous`` section."""
+    if kind != "multi-position":
+        raise ConfigError(source, "continuous", f"no continuous section for kind {kind} "
+                          "(multi-position only)", "one")
+    lo, hi = c.poses
+    if not 1 <= lo <= hi <= MAX_POSES:
+        raise ConfigError(source, "continuous.poses", f"1 <= low <= high <= {MAX_POSES}", repr(c.poses))
+    for name in ("pose_s", "handling_s", "quiet_s"):
+        low, high = getattr(c, name)
+        if not 0 < low <= high:
+            raise ConfigError(source, f"continuous.{name}", "0 < low <= high", repr(getattr(c, name)))
+    if not 0.0 <= c.quiet_start_prob <= 1.0:
+        raise ConfigError(source, "continuous.quiet_start_prob", "a probability in [0, 1]",
+                          repr(c.quiet_start_prob))
+    longest = hi * (c.pose_s[1] + c.handling_s[1]) + c.handling_s[1] + c.quiet_s[1]
+    if longest > MAX_STATIONARY_S:
+        raise ConfigError(source, "continuous", f"recordings of at most {MAX_STATIONARY_S:g} s (one day)",
+                          f"up to {longest:g} s")
+
+
+MAX_FLEET_DUTS = 100_000
+"""Most devices the compact ``duts: {count: ...}`` form declares."""
+
+_FLEET_KEYS = ("count", "prefix", "start", "digits", "up_axis", "reference_to_sensor")
+
+
+def _fleet_int(spec: dict[str, Any], key: str, default: int, low: int, high: int, source: str) -> int:
+    value = spec.get(key, default)
+    if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+        raise ConfigError(source, f"duts.{key}", f"an integer in {low}..{high}", repr(value))
+    return value
+
+
+def expand_duts(duts: Any, source: str = "<config>") -> Any:
+    """The plain ``duts`` list of a configuration, its compact forms expanded.
+
+    Parameters
+    ----------
+    duts
+        A list of device mappings (returned as is), a mapping ``{id: {...} or null}``, or the
+        fleet form ``{count: N, prefix: unit-, start: 1, digits: 3, up_axis: ...,
+        reference_to_sensor: ...}`` (only ``count`` required): N devices
+        ``<prefix><start:0{digits}d>`` … sharing the optional settings.
+    source
+        File or name for error messages.
+
+    Returns
+    -------
+    list or the input unchanged
+        ``[{"id": ..., ...}, ...]`` for the mapping forms; anything else unchanged (the type
+        check of :func:`load_config` reports it).
+
+    Raises
+    ------
+    ConfigError
+        An unknown key of the fleet form, a count, start or digits out of range, or ids that
+        are not ``[A-Za-z0-9._-]+``.
+    """
+    if not isinstance(duts, dict):
+        return duts
+    if "count" not in duts or isinstance(duts["count"], dict | None):  # {id: {...}}: a device named count
+        return [{"id": k, **(v or {})} for k, v in duts.items()]
+    unknown = sorted(set(duts) - set(_FLEET_KEYS))
+    if unknown:
+        raise ConfigError(source, f"duts.{unknown[0]}", "one of " + ", ".join(_FLEET_KEYS), "an unknown key")
+    count = _fleet_int(duts, "count", 0, 1, MAX_FLEET_DUTS, source)
+    start = _fleet_int(duts, "start", 1, 0, 10**9, source)
+    digits = _fleet_int(duts, "digits", 3, 1, 12, source)
+    prefix = duts.get("prefix", "unit-")
+    if not isinstance(prefix, str):
+        raise ConfigError(source, "duts.prefix", "a string", repr(prefix))
+    ids = [f"{prefix}{start + k:0{digits}d}" for k in range(count)]
+    if not ID_PATTERN.match(ids[0]):
+        raise ConfigError(source, "duts.prefix", "letters, digits, '.', '_' or '-' (device ids)",
+                          repr(prefix))
+    shared = {k: duts[k] for k in ("up_axis", "reference_to_sensor") if k in duts}
+    return [{"id": i, **shared} for i in ids]
 
 
 def load_config(name_or_path: str | Path, overrides: dict[str, Any] | None = None) -> SimConfig:
@@ -297,24 +427,28 @@ def load_config(name_or_path: str | Path, overrides: dict[str, Any] | None = Non
     if overrides:
         data = deep_merge(data, overrides)
     source = str(name_or_path)
-    duts = data.get("duts")
-    if isinstance(duts, dict):  # allow {id: {...}} as well as a list
-        data["duts"] = [{"id": k, **(v or {})} for k, v in duts.items()]
+    if "duts" in data:  # {id: {...}} or the fleet form {count: ..., prefix: ...} as well as a list
+        data["duts"] = expand_duts(data["duts"], source)
     cfg = from_plain(data, SimConfig, source)
     return _check(cfg, source)
 
 
 def load_config_from(cfg: SimConfig, overrides: dict[str, Any], source: str = "<config>") -> SimConfig:
     """``cfg`` with ``overrides`` merged over its keys, checked like :func:`load_config`."""
-    data = deep_merge(config_to_dict(cfg), overrides)
+    plain = config_to_dict(cfg)
+    if isinstance(overrides.get("duts"), dict):  # a compact form replaces the devices
+        plain.pop("duts")
+    data = deep_merge(plain, overrides)
+    if "duts" in data:
+        data["duts"] = expand_duts(data["duts"], source)
     return _check(from_plain(data, SimConfig, source), source)
 
 
 def config_to_dict(cfg: SimConfig) -> dict[str, Any]:
     """Plain (JSON/YAML-ready) form of a configuration.
 
-    ``reference_format`` is left out at its default, so that campaigns written before the key
-    existed keep the same bytes.
+    ``reference_format`` and ``continuous`` are left out at their defaults, so that campaigns
+    written before the keys existed keep the same bytes.
     """
 
     def plain(v: Any) -> Any:
@@ -327,4 +461,6 @@ def config_to_dict(cfg: SimConfig) -> dict[str, Any]:
     out = plain(dataclasses.asdict(cfg))
     if out["reference_format"] == REFERENCE_FORMATS[0]:
         del out["reference_format"]
+    if out["continuous"] is None:
+        del out["continuous"]
     return out

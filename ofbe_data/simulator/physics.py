@@ -6,11 +6,13 @@ ideal accelerometer reads the specific force, which points *up* with magnitude g
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from scipy.signal import lfilter
 from scipy.spatial.transform import Rotation
 
-from ofbe_data.core.geometry import mul3, norm3
+from ofbe_data.core.geometry import dot3, mul3, norm3
 
 MG = 9.80665e-3
 """One milli-g in m/s² (unit conversion with standard gravity g0)."""
@@ -46,6 +48,18 @@ def axis_vector(axis: str) -> np.ndarray:
 def small_rotation(rotvec_rad: np.ndarray) -> np.ndarray:
     """(3, 3) rotation matrix of a rotation vector, radians."""
     return Rotation.from_rotvec(np.asarray(rotvec_rad, dtype=float)).as_matrix()
+
+
+def level_nominal(up_axis: str) -> np.ndarray:
+    """Rotation taking the level plate's +z (up) to the device's ``up_axis`` (e.g. ``-x``)."""
+    target = axis_vector(up_axis)
+    z = np.array([0.0, 0.0, 1.0])
+    if np.allclose(target, z):
+        return np.eye(3)
+    if np.allclose(target, -z):
+        return np.diag([1.0, -1.0, -1.0])
+    axis = np.cross(z, target)
+    return small_rotation(axis / norm3(axis) * np.pi / 2)
 
 
 def sensor_matrix(scale: np.ndarray, nonorth_rad: np.ndarray) -> np.ndarray:
@@ -136,3 +150,92 @@ def random_unit_vectors(n: int, rng: np.random.Generator) -> np.ndarray:
     """(n, 3) directions uniform on the sphere."""
     v = rng.standard_normal((n, 3))
     return v / norm3(v)[:, None]
+
+
+def spread_directions(k: int, rng: np.random.Generator, candidates: int = 16) -> np.ndarray:
+    """k random directions spread over the whole sphere, in random order.
+
+    Mitchell's best candidate: each direction after the first is, of ``candidates`` uniform
+    draws, the one farthest from those already chosen (the smallest largest cosine). The set
+    spans the sphere like a jig's faces do, yet no two sets are alike. Only products, sums and
+    square roots (no trigonometry), so the directions are the same on every machine.
+
+    Parameters
+    ----------
+    k
+        Number of directions (≥ 1).
+    rng
+        Random generator.
+    candidates
+        Uniform draws per direction after the first.
+
+    Returns
+    -------
+    ndarray, shape (k, 3)
+        Unit vectors.
+    """
+    chosen = random_unit_vectors(1, rng)
+    for _ in range(1, k):
+        cand = random_unit_vectors(candidates, rng)
+        nearest = np.max(mul3(cand, chosen.T), axis=1)
+        chosen = np.vstack([chosen, cand[int(np.argmin(nearest))]])
+    return chosen[rng.permutation(k)]
+
+
+def rotate_about(axes: np.ndarray, angles: np.ndarray, vectors: np.ndarray) -> np.ndarray:
+    """Rotate vectors about unit axes by angles (Rodrigues), element by element.
+
+    Parameters
+    ----------
+    axes
+        (N, 3) or (3,) unit rotation axes.
+    angles
+        (N,) angles, radians.
+    vectors
+        (N, 3) or (3,) vectors.
+
+    Returns
+    -------
+    ndarray, shape (N, 3)
+    """
+    n = np.asarray(angles).shape[0]
+    axes = np.broadcast_to(np.asarray(axes, dtype=np.float64), (n, 3))
+    vectors = np.broadcast_to(np.asarray(vectors, dtype=np.float64), (n, 3))
+    c, s = np.cos(angles)[:, None], np.sin(angles)[:, None]
+    dot = dot3(axes, vectors)[:, None]
+    return vectors * c + np.cross(axes, vectors) * s + axes * (dot * (1.0 - c))
+
+
+def minimum_jerk(s: np.ndarray) -> np.ndarray:
+    """Minimum-jerk profile 10s³ − 15s⁴ + 6s⁵ of s in [0, 1]: 0 → 1 with zero velocity and
+    acceleration at both ends (how a hand moves an object from rest to rest)."""
+    return s * s * s * (10.0 + s * (-15.0 + 6.0 * s))
+
+
+def jolt_signal(tau: np.ndarray, jolt: dict[str, Any], end: float) -> np.ndarray:
+    """(N, 3) m/s², a hand's jolt starting at tau = 0: a half-sine pulse and a ringing.
+
+    Parameters
+    ----------
+    tau
+        (N,) s, time since the jolt (zero output before it).
+    jolt
+        ``length`` (s), ``pulse`` (m/s²), ``pulse_dir`` (3,), ``ring`` (m/s²), ``ring_dir``
+        (3,), ``ring_hz``, ``decay_s``.
+    end
+        s (same origin as ``tau``): the jolt is faded out by then (a cosine taper over
+        0.05 s), so that the device comes to rest smoothly.
+
+    Returns
+    -------
+    ndarray, shape (N, 3)
+    """
+    length = jolt["length"]
+    on = (tau >= 0.0) & (tau <= length)
+    pulse = np.where(on, jolt["pulse"] * np.sin(np.pi * np.clip(tau, 0.0, length) / length), 0.0)
+    after = np.maximum(tau, 0.0)
+    ring = np.where(tau >= 0.0, jolt["ring"] * np.exp(-after / jolt["decay_s"])
+                    * np.sin(2.0 * np.pi * jolt["ring_hz"] * after), 0.0)
+    taper = 0.5 - 0.5 * np.cos(np.pi * np.clip((end - tau) / 0.05, 0.0, 1.0))
+    return (pulse[:, None] * np.asarray(jolt["pulse_dir"]) + ring[:, None] * np.asarray(jolt["ring_dir"])) \
+        * taper[:, None]

@@ -3,13 +3,22 @@
 from __future__ import annotations
 
 import argparse
+import inspect
 import sys
 from collections.abc import Sequence
 from pathlib import Path
 
 import pandas as pd
 
-from ofbe_data.core.cli import add_params, add_verbose, command, fail, quiet_libraries
+from ofbe_data.core.cli import (
+    add_jobs,
+    add_params,
+    add_scheduler,
+    add_verbose,
+    command,
+    fail,
+    quiet_libraries,
+)
 from ofbe_data.core.errors import ConfigError, OfbeError
 from ofbe_data.io.typedconfig import read_section
 from ofbe_model.benchmark.runner import benchmark_params_from, run_protocol
@@ -31,9 +40,34 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--truth", action="append", default=[],
                    help="the simulator's truth folder of a dataset's campaign, for the oracle (repeat per "
                         "dataset, in the same order)")
+    add_jobs(p, "worker processes")
+    add_scheduler(p)
     p.add_argument("--quiet", action="store_true")
     add_verbose(p)
     return p
+
+
+def _run_options(args: argparse.Namespace) -> dict[str, object]:
+    """``jobs`` and ``scheduler`` for :func:`run_protocol`, as far as it takes them.
+
+    Raises
+    ------
+    ConfigError
+        ``--jobs`` below 1, or a value other than the default for an option the runner does
+        not take.
+    """
+    if args.jobs < 1:
+        raise ConfigError("command line", "--jobs", "an integer ≥ 1", str(args.jobs))
+    takes = inspect.signature(run_protocol).parameters
+    options: dict[str, object] = {}
+    for key, default in (("jobs", 1), ("scheduler", "processes")):
+        value = getattr(args, key)
+        if key in takes:
+            options[key] = value
+        elif value != default:
+            raise ConfigError("command line", f"--{key}", f"{default} (this benchmark runner runs here only)",
+                              str(value))
+    return options
 
 
 @command(PROG)
@@ -47,6 +81,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.methods:
             data["methods"] = list(args.methods)
         params = benchmark_params_from(data, args.params or "command line")
+        options = _run_options(args)
         if args.truth and len(args.truth) != len(args.datasets):
             raise ConfigError("command line", "--truth", f"one per dataset ({len(args.datasets)})",
                               str(len(args.truth)))
@@ -59,7 +94,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         for i, ds in enumerate(args.datasets):
             truth = args.truth[i] if args.truth else None
             pred, seconds = run_protocol(ds, args.protocol, params, models_dir=args.models, truth_dir=truth,
-                                         progress=not args.quiet)
+                                         progress=not args.quiet, **options)
             frames.append(pred)
             for k, v in seconds.items():
                 timing[k] = timing.get(k, 0.0) + v

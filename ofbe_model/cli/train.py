@@ -10,7 +10,15 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from ofbe_data.core.cli import add_jobs, add_params, add_verbose, command, fail, quiet_libraries
+from ofbe_data.core.cli import (
+    add_jobs,
+    add_params,
+    add_scheduler,
+    add_verbose,
+    command,
+    fail,
+    quiet_libraries,
+)
 from ofbe_data.core.errors import ConfigError, OfbeError
 from ofbe_data.dataset.store import fold_column
 
@@ -31,6 +39,7 @@ def _parser() -> argparse.ArgumentParser:
                         "overrides train.seeds)")
     add_params(p, "train", "the OFBENet parameters and the number of seeds")
     add_jobs(p, "fits trained at once, each in a single-threaded worker (the models do not depend on it)")
+    add_scheduler(p)
     p.add_argument("--quiet", action="store_true", help="no progress bar and no summary line")
     add_verbose(p)
     return p
@@ -64,7 +73,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     t0 = time.perf_counter()
     try:
         written = train(dataset, args.protocol, args.out, params, args.folds, progress=not args.quiet,
-                        seeds=seeds, jobs=args.jobs)
+                        seeds=seeds, jobs=args.jobs, scheduler=args.scheduler)
     except _Usage as exc:
         return fail(PROG, str(exc), 2)
     except (OfbeError, OSError) as exc:

@@ -301,7 +301,7 @@ def _fit_task(task: FitTask) -> tuple[dict[str, Any], dict[str, list[float]]]:
 
 def train(dataset: str | Path, protocol: str, out: str | Path, params: OFBENetParams,
           folds: Sequence[int] | None = None, progress: bool = True, seeds: int = DEFAULT_SEEDS,
-          jobs: int = 1) -> list[Path]:
+          jobs: int = 1, scheduler: str = "processes") -> list[Path]:
     """Train every (selected) fold of every benchmark dataset of one windowed dataset.
 
     Parameters
@@ -324,6 +324,10 @@ def train(dataset: str | Path, protocol: str, out: str | Path, params: OFBENetPa
     jobs
         Fits trained at once, each in its own single-threaded worker process
         (:data:`WORKER_ENV`); the models are the same whatever ``jobs``.
+    scheduler
+        Where the fits run: ``processes``, ``dask`` or ``tcp://host:port``
+        (:func:`ofbe_data.core.parallel.map_progress`; the Dask workers get :data:`WORKER_ENV`
+        before they start), the models the same whatever it is.
 
     Returns
     -------
@@ -335,8 +339,9 @@ def train(dataset: str | Path, protocol: str, out: str | Path, params: OFBENetPa
     _Usage
         Unknown protocol or fold.
     OfbeError
-        A bad dataset (:class:`~ofbe_data.dataset.store.DatasetError`) or a failed fit
-        (:class:`~ofbe_model.estimators.base.EstimatorError`).
+        A bad dataset (:class:`~ofbe_data.dataset.store.DatasetError`), a failed fit
+        (:class:`~ofbe_model.estimators.base.EstimatorError`), or a fit whose worker process
+        died (:class:`~ofbe_data.core.parallel.TaskError`); the other fits are finished first.
     """
     ds = load_dataset(dataset)
     meta = ds.meta
@@ -362,9 +367,10 @@ def train(dataset: str | Path, protocol: str, out: str | Path, params: OFBENetPa
                           dataclasses.replace(params, seed=params.seed + i), str(folder))
                   for i in range(seeds)]
     results = map_progress(_fit_task, tasks, jobs=jobs, desc=f"{PROG} {protocol}", unit="fit",
-                           progress=progress, worker_env=WORKER_ENV,
+                           progress=progress, worker_env=WORKER_ENV, scheduler=scheduler,
                            postfix=lambda r: f"fold {r[0]['fold']} seed {r[0]['seed']}: "
-                                             f"{r[0]['epochs_run']} epochs")
+                                             f"{r[0]['epochs_run']} epochs",
+                           name=lambda t: f"{t.name} {protocol} fold {t.fold} seed {t.params.seed}")
     written: list[Path] = []
     by_dataset: dict[str, list[Split]] = {}
     for s in splits:

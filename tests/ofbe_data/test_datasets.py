@@ -280,3 +280,37 @@ def test_a_full_disk_is_refused_before_hdf5_sees_it(campaigns, tmp_path, capsys,
                         r"windows, found 1 MiB free on its disk \(nothing was kept: free space, or build "
                         r"elsewhere with --out, and rerun\)\n", err), err
     assert not out.exists() and not any(tmp_path.glob(".out*"))
+
+
+def test_the_card_is_a_hugging_face_dataset_card_whose_parquet_loads(built, tmp_path) -> None:
+    import yaml
+
+    from ofbe_data.dataset.export import export_dataset
+
+    shared = export_dataset(built["rot"], tmp_path / "shared", licence="CC-BY-4.0")
+    text = (shared / "README.md").read_text(encoding="utf-8")
+    assert text.startswith("---\n")
+    front = yaml.safe_load(text.split("---\n")[1])
+    n = len(pd.read_parquet(shared / "windows.parquet"))
+    assert front["license"] == "cc-by-4.0" and front["pretty_name"]
+    assert front["size_categories"] == ["n<1K" if n < 1000 else "1K<n<10K"]
+    assert front["task_categories"] == ["tabular-regression"]
+    (config,) = front["configs"]
+    (files,) = config["data_files"]
+    assert config["config_name"] == "default" and files["split"] == "train"
+    # load it the way the dataset ecosystem does: the `datasets` package when installed, else
+    # pyarrow's dataset API (what `datasets` uses underneath for Parquet)
+    try:
+        import datasets  # type: ignore[import-not-found]
+
+        table = datasets.load_dataset("parquet", data_files={"train": str(shared / files["path"])},
+                                      split="train").data.table
+    except ImportError:
+        import pyarrow.dataset as pads
+
+        table = pads.dataset(shared / files["path"], format="parquet").to_table()
+    assert table.num_rows == n and {"bias_x", "bias_y", "bias_z", "fold_grouped"} <= set(table.column_names)
+    # a licence the Hub does not list is `other` with its SPDX name
+    odd = export_dataset(built["rot"], tmp_path / "odd", licence="CC-BY-ND-4.0")
+    front = yaml.safe_load((odd / "README.md").read_text(encoding="utf-8").split("---\n")[1])
+    assert front["license"] == "other" and front["license_name"] == "CC-BY-ND-4.0"

@@ -282,8 +282,10 @@ def test_noise_free_poses_end_where_the_motion_begins_less_the_margins() -> None
     acc = _two_poses(100.0, 3.0, 1.0)
     assert detect_static(acc, 100.0, 1e-9, PoseParams(margin_s=0.0)) == [(0, 300), (400, 700)]
     assert detect_static(acc, 100.0, 1e-9) == [(25, 275), (425, 675)]
-    # a pose that the margins leave shorter than min_pose_s is dropped
-    assert detect_static(_two_poses(100.0, 1.4, 1.0), 100.0, 1e-9) == []
+    # min_pose_s is the still run's own length: a 1.4-s rest is a pose (trimmed by the margins),
+    # a 0.9-s one is not
+    assert detect_static(_two_poses(100.0, 1.4, 1.0), 100.0, 1e-9) == [(25, 115), (265, 355)]
+    assert detect_static(_two_poses(100.0, 0.9, 1.0), 100.0, 1e-9) == []
     assert detect_static(acc[:40], 100.0, 1e-9) == []  # shorter than one window
 
 

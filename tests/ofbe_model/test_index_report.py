@@ -132,7 +132,7 @@ def _datasets_and_models(root: Path) -> None:
     _write(ds / "README.md", "# sim\n")
     folds = [{"fold": i, "epochs_run": e, "best_epoch": e - 5, "seconds": s}
              for i, (e, s) in enumerate([(7, 1.25), (12, 2.5), (9, 0.75)])]
-    _json(root / "models" / "sim" / "paper-gravity" / "training.json",
+    _json(root / "models" / "cv" / "sim" / "paper-gravity" / "training.json",
           {"format": "ofbe-training/1", "dataset": "sim", "protocol": "paper-gravity", "folds": folds})
 
 
@@ -180,7 +180,7 @@ def test_every_link_is_relative_and_exists(tree):
     for link in ("benchmark/paper-gravity/benchmark.md", "benchmark/paper-gravity/benchmark.json",
                  "benchmark/paper-gravity/errors.csv", "convergence/convergence.md",
                  "convergence/allan_dev-a.png", "convergence/allan_dev-b.png", "small_angle/small_angle.md",
-                 "../processed/datasets/sim/README.md", "../models/sim/paper-gravity/training.json"):
+                 "../processed/datasets/sim/README.md", "../models/cv/sim/paper-gravity/training.json"):
         assert f"]({link})" in text, link
 
 

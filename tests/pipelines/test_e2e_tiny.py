@@ -21,7 +21,8 @@ from ofbe_data.dataset.store import SCHEMA_VERSION, verify_dataset
 from ofbe_data.labelling.store import LABEL_SCHEMA
 
 ROOT = Path(__file__).resolve().parents[2]
-STAGES = ("simulate", "convergence", "small_angle", "label", "datasets", "train", "benchmark", "index")
+STAGES = ("simulate", "convergence", "small_angle", "label", "datasets", "train", "benchmark", "deploy",
+          "index")
 
 
 def _run(cwd: Path, *args: str) -> str:
@@ -82,6 +83,15 @@ def test_every_stage_ran_and_outputs_have_their_schemas(tiny) -> None:
         for ds in doc["datasets"].values():
             assert {"ofbenet", "ls-trf", "won2009", "oracle"} <= set(ds["methods"])
             assert len(ds["methods"]["ofbenet"]["rmse_folds"]) == 5
+    for campaign in ("gravity-aligned", "rotated"):  # the deployable models and their cards
+        folder = tiny / "models" / campaign
+        assert {p.name for p in folder.iterdir()} >= {"final.keras", "gravity-prior.json", "MODEL_CARD.md",
+                                                     "model_card.json"}
+        card = json.loads((folder / "model_card.json").read_text())
+        assert card["benchmark"]["gravity-prior"]["grouped"], card["benchmark"]  # quotes this run's benchmark
+        _run(tiny, sys.executable, "-m", "ofbe_model.cli.predict", str(folder / "gravity-prior.json"),
+             str(next((tiny / "raw" / campaign).glob("*/session.yaml")).parent), "--window-length", "500")
+    assert sorted((tiny / "models" / "cv").glob("*/*/training.json"))
     index = (tiny / "reports" / "index.md").read_text()
     assert index.count("| Dataset | Sensors | Method |") == 3
     assert "Label fidelity" in index and "convergence_histogram.png" in index and "small_angle.png" in index

@@ -74,7 +74,8 @@ def _imported_files(entry: str) -> set[str]:
                                           ("datasets", "pipelines/datasets.py"),
                                           ("train", "pipelines/train.py"),
                                           ("benchmark", "pipelines/benchmark.py"),
-                                          ("index", "pipelines/index.py")])
+                                          ("index", "pipelines/index.py"),
+                                          ("deploy", "pipelines/deploy.py")])
 def test_stages_depend_on_every_module_they_run(stage, entry):
     deps = yaml.safe_load((ROOT / "dvc.yaml").read_text())["stages"][stage]["deps"]
     assert entry in deps
