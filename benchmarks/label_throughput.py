@@ -1,7 +1,7 @@
 """Time labelling both paper-size campaigns against a bare pyarrow CSV parse of the same files.
 
 Usage: python benchmarks/label_throughput.py [--raw DIR] [--jobs N [N ...]] [--repeat N]
-                                             [--profile] [--profile-campaign NAME]
+                                             [--profile] [--profile-campaign NAME] [--breakdown]
 
 Simulates the gravity-aligned and rotated campaigns into a temporary folder (or uses
 ``DIR/gravity-aligned`` and ``DIR/rotated`` from ``--raw``), then measures:
@@ -19,20 +19,31 @@ Simulates the gravity-aligned and rotated campaigns into a temporary folder (or 
 Prints files, MB, samples, the times, samples/s and the ratio labelling / bare parse (the
 issue's target is a ratio of at most 2 for one process). With ``--profile`` it also runs
 cProfile over labelling one campaign in one process and prints the top 25 functions by
-cumulative and by own time. Nothing is asserted: this is a measurement.
+cumulative and by own time. With ``--breakdown`` it labels both campaigns once more in one
+process with a CPU-time clock around the steps of labelling (pyarrow's CSV parse, the rest
+of the readers, hashing, the manifest, tap signals and synchronisation, the static detector,
+the convergence index, the checks, writing the products) and prints each step's inclusive
+CPU seconds against the bare parse's: CPU time, because other processes on a shared machine
+inflate wall-clock steps unevenly. Nothing is asserted: this is a measurement.
 """
 
 from __future__ import annotations
 
 import argparse
 import cProfile
+import functools
+import importlib
 import pstats
+import sys
 import tempfile
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
+import numpy as np
 import pyarrow as pa
 import pyarrow.csv as pacsv
 
@@ -151,6 +162,117 @@ def profile_labelling(folders: Sequence[Path], out_dir: Path, top: int = 25) -> 
         stats.sort_stats(key).print_stats(top)
 
 
+#: The steps --breakdown times: (label, module, function). Nested steps are inclusive (the
+#: readers include the parse; synchronisation includes the DUT's tap signals).
+BREAKDOWN_STEPS: tuple[tuple[str, str, str], ...] = (
+    ("label_session (all per-session work)", "ofbe_data.labelling.labels", "label_session"),
+    ("  read_device_file (readers)", "ofbe_data.io.formats", "read_device_file"),
+    ("    pyarrow.csv.read_csv (the parse)", "pyarrow.csv", "read_csv"),
+    ("    _clean_times", "ofbe_data.io.formats.common", "_clean_times"),
+    ("  sha256_file (hashing, a second read)", "ofbe_data.labelling.labels", "sha256_file"),
+    ("  load_manifest (twice per session)", "ofbe_data.io.manifest", "load_manifest"),
+    ("  tap_signals (high-pass, envelope, taps)", "ofbe_data.labelling.sync", "tap_signals"),
+    ("  synchronise (incl. the DUT's tap signals)", "ofbe_data.labelling.sync", "synchronise"),
+    ("    _lag_at (cross-correlation)", "ofbe_data.labelling.sync", "_lag_at"),
+    ("  check_static (static detector)", "ofbe_data.labelling.stationarity", "check_static"),
+    ("  convergence_index", "ofbe_data.labelling.convergence", "convergence_index"),
+    ("  rate_step (checks)", "ofbe_data.labelling.checks", "rate_step"),
+    ("  clipped_samples (checks)", "ofbe_data.labelling.checks", "clipped_samples"),
+    ("  _typical_reading (median norm, labels.py)", "ofbe_data.labelling.labels", "_typical_reading"),
+    ("write_session (Parquet + JSON)", "ofbe_data.labelling.store", "write_session"),
+    ("fit_campaign", "ofbe_data.labelling.store", "fit_campaign"),
+)
+
+
+@contextmanager
+def _timed_steps(steps: Sequence[tuple[str, str, str]]) -> Iterator[dict[str, list[float]]]:
+    """Wrap each step's function (in its module and wherever it was imported by name) with
+    a CPU-time clock; yield label → [seconds, calls]; restore everything after."""
+    totals: dict[str, list[float]] = {label: [0.0, 0] for label, _, _ in steps}
+    patched: list[tuple[Any, str, Any]] = []
+    for label, module, name in steps:
+        original = getattr(importlib.import_module(module), name)
+
+        def timed(*args: Any, _f: Callable[..., Any] = original, _label: str = label, **kwargs: Any) -> Any:
+            start = time.thread_time()
+            try:
+                return _f(*args, **kwargs)
+            finally:
+                totals[_label][0] += time.thread_time() - start
+                totals[_label][1] += 1
+
+        functools.update_wrapper(timed, original)
+        for mod in list(sys.modules.values()):
+            if getattr(mod, name, None) is original and (mod.__name__ or "").startswith(("ofbe", "pyarrow")):
+                patched.append((mod, name, original))
+                setattr(mod, name, timed)
+    try:
+        yield totals
+    finally:
+        for mod, name, original in patched:
+            setattr(mod, name, original)
+
+
+def breakdown(folders: Sequence[Path], out_dir: Path, files: Sequence[DataFile]) -> None:
+    """Label ``folders`` in one process with a CPU clock around each step; print the steps."""
+    start = time.thread_time()
+    bare_parse(files)
+    bare = time.thread_time() - start
+    with _timed_steps(BREAKDOWN_STEPS) as totals:
+        start = time.thread_time()
+        label_sessions(folders, LabelParams(), out_dir, jobs=1, progress=False)
+        total = time.thread_time() - start
+    print(f"\nbreakdown (CPU seconds, one process; bare parse {bare:.2f} s):")
+    print(f"  {'label_sessions (everything)':48s} {total:7.2f} s  {total / bare:5.2f} x bare parse")
+    for label, (seconds, calls) in totals.items():
+        print(f"  {label:48s} {seconds:7.2f} s  {seconds / bare:5.2f} x  ({int(calls)} calls)")
+
+
+def reader_speeds(folder: Path, n: int = 600_000) -> None:
+    """Print each reader's cost per sample on the same n samples (ofbe-logger, generic csv in
+    three layouts, mscip-csv, mscip-bin), written by the toolkit's own writers."""
+    from ofbe_data.io.device_options import CsvMapping
+    from ofbe_data.io.formats.generic_csv import read_generic_csv, write_generic_csv
+    from ofbe_data.io.formats.mscip_bin import read_mscip_bin, write_mscip_bin
+    from ofbe_data.io.formats.mscip_csv import read_mscip_csv, write_mscip_csv
+    from ofbe_data.io.formats.ofbe_logger import read_ofbe_logger, write_ofbe_logger
+    from ofbe_data.io.gravity import G0
+
+    rng = np.random.default_rng(1)
+    counts = np.rint(rng.normal([3.0, -5.0, 259.0], 1.5, size=(n, 3))).astype(np.int64)
+    acc = counts / 256.0 * G0
+    t = np.arange(n) / 150.0
+    header = {"fw": "1.4.2", "board": "b", "chip": "ADXL345", "device": "d", "odr_hz": "150", "range_g": "16",
+              "full_res": "1", "lsb_per_g": "256", "host_start_utc": "2025-03-14T10:22:31.100Z"}
+    write_ofbe_logger(folder / "logger.csv", (t * 1e6).astype(np.int64), counts, header)
+    g_csv = CsvMapping({"t": "t", "ax": "ax", "ay": "ay", "az": "az"}, "s", "g")
+    write_generic_csv(folder / "generic.csv", t, acc, g_csv)
+    (folder / "whitespace.txt").write_text("".join(f"  {i}\t{a} {b}  {c}\n" for i, (a, b, c) in
+                                                   enumerate((counts + 512).tolist())))
+    ws = CsvMapping({"t": 0, "ax": 1, "ay": 2, "az": 3}, "samples", "counts", 256.0, header=False,
+                    delimiter="whitespace", sample_rate_hz=150.0, zero_counts=512.0)
+    write_mscip_csv(folder / "mscip.csv", t, acc / G0, np.zeros((n, 3)), np.full(n, 25.0),
+                    serial="3025-00417", rate_hz=150.0, start_utc="2025-03-14T10:22:31.512Z")
+    write_mscip_bin(folder / "mscip.bin", t, acc, "2025-03-14T10:22:31.512Z")
+    readers = [("ofbe-logger", lambda: read_ofbe_logger(folder / "logger.csv")),
+               ("generic csv (named columns, s, g)", lambda: read_generic_csv(folder / "generic.csv", g_csv)),
+               ("generic csv (headerless whitespace counts)",
+                lambda: read_generic_csv(folder / "whitespace.txt", ws)),
+               ("mscip-csv", lambda: read_mscip_csv(folder / "mscip.csv")),
+               ("mscip-bin", lambda: read_mscip_bin(folder / "mscip.bin"))]
+    base = None
+    for name, read in readers:
+        best = min(_seconds(read) for _ in range(3))
+        base = base or best
+        print(f"reader {name:44s}: {best / n * 1e9:7.1f} ns/sample ({best / base:.2f}× ofbe-logger)")
+
+
+def _seconds(fn: Any) -> float:
+    start = time.perf_counter()
+    fn()
+    return time.perf_counter() - start
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--raw", type=Path, default=None,
@@ -159,7 +281,16 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=1, help="best of this many runs (default: 1)")
     parser.add_argument("--profile", action="store_true", help="cProfile labelling of one campaign")
     parser.add_argument("--profile-campaign", choices=CAMPAIGNS, default="rotated")
+    parser.add_argument("--breakdown", action="store_true",
+                        help="CPU time of each labelling step against the bare parse's")
+    parser.add_argument("--readers", action="store_true",
+                        help="only each reader's cost per sample (ofbe-logger, generic csv, mscip-csv, "
+                             "mscip-bin)")
     args = parser.parse_args()
+    if args.readers:
+        with tempfile.TemporaryDirectory(prefix="ofbe-readers-") as tmp:
+            reader_speeds(Path(tmp))
+        return
     with tempfile.TemporaryDirectory(prefix="ofbe-label-bench-") as tmp:
         scratch = Path(tmp)
         raw = args.raw
@@ -202,6 +333,9 @@ def main() -> None:
             for jobs, seconds in times.items():
                 if jobs != 1:
                     print(f"speed-up jobs={jobs} vs jobs=1: {times[1] / seconds:.2f}x")
+
+        if args.breakdown:
+            breakdown(folders, scratch / "labels-breakdown", files)
 
         if args.profile:
             camp = expand_sessions([raw / args.profile_campaign])

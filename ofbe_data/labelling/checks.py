@@ -151,7 +151,10 @@ def rate_step(t: np.ndarray, block: int = 500) -> tuple[int, float, float] | Non
     if not overall > 0:
         return None
     n = steps.size // block
-    medians = np.median(steps[: n * block].reshape(n, block), axis=1)
+    blocks = steps[: n * block].reshape(n, block)
+    if _medians_within(blocks, overall):
+        return None
+    medians = np.median(blocks, axis=1)
     ratio = medians / overall
     off = np.flatnonzero((ratio > RATE_STEP_FACTOR) | (ratio < 1.0 / RATE_STEP_FACTOR))
     if off.size == 0:
@@ -159,6 +162,26 @@ def rate_step(t: np.ndarray, block: int = 500) -> tuple[int, float, float] | Non
     k = int(off[0])
     before = float(np.median(medians[:k])) if k else overall
     return k * block, 1.0 / before, 1.0 / float(medians[k])
+
+
+def _medians_within(blocks: np.ndarray, overall: float) -> bool:
+    """True when every row's median is certainly within :data:`RATE_STEP_FACTOR` of
+    ``overall`` (so :func:`rate_step` finds no change), by counting instead of sorting.
+
+    A row's median takes its sorted elements at (b − 1) // 2 and b // 2: when fewer than
+    ⌈b/2⌉ elements lie above a bound, both are at most it (likewise below). The bounds sit a
+    relative 1e-12 inside the factor, so that no rounding of ``median / overall`` can cross
+    it; a row near the limit makes this False, and the medians are then computed.
+    """
+    b = blocks.shape[1]
+    need = b - b // 2
+    hi = overall * RATE_STEP_FACTOR * (1.0 - 1e-12)
+    lo = overall * (1.0 / RATE_STEP_FACTOR) * (1.0 + 1e-12)
+    for beyond in (blocks > hi, blocks < lo):
+        # the whole count bounds every row's (gaps are a few long steps in the whole file)
+        if np.count_nonzero(beyond) >= need and np.any(np.count_nonzero(beyond, axis=1) >= need):
+            return False
+    return True
 
 
 def clipped_samples(x: np.ndarray, min_count: int = 5, min_fraction: float = 0.01,
@@ -178,14 +201,46 @@ def clipped_samples(x: np.ndarray, min_count: int = 5, min_fraction: float = 0.0
     """
     x = np.asarray(x, dtype=np.float64)
     n = x.shape[0]
+    need = max(min_count, min_fraction * n)
     for k in range(x.shape[1]):
-        values, counts = np.unique(x[:, k], return_counts=True)
-        if values.size < 2:
+        col = x[:, k]
+        if col.size == 0:
             continue
-        for end, neighbour in ((-1, -2), (0, 1)):
-            c = int(counts[end])
-            if c >= max(min_count, min_fraction * n) and c > counts[neighbour]:
-                return c, k, float(values[end])
+        hi, lo = col.max(), col.min()
+        if not (np.isfinite(hi) and np.isfinite(lo)) or hi == 0.0 or lo == 0.0:
+            # NaN, infinities or a signed zero at an end: np.unique's own grouping decides
+            found = _clipped_by_unique(col, need)
+        else:
+            found = _clipped_at_ends(col, hi, lo, need)
+        if found is not None:
+            return found[0], k, found[1]
+    return None
+
+
+def _clipped_by_unique(col: np.ndarray, need: float) -> tuple[int, float] | None:
+    values, counts = np.unique(col, return_counts=True)
+    if values.size < 2:
+        return None
+    for end, neighbour in ((-1, -2), (0, 1)):
+        c = int(counts[end])
+        if c >= need and c > counts[neighbour]:
+            return c, float(values[end])
+    return None
+
+
+def _clipped_at_ends(col: np.ndarray, hi: float, lo: float, need: float) -> tuple[int, float] | None:
+    """:func:`_clipped_by_unique` for finite values without a zero at either end: the counts
+    of the extremes and of the values next to them, without sorting."""
+    if hi == lo:
+        return None
+    for value, beyond in ((hi, col < hi), (lo, col > lo)):
+        c = int(np.count_nonzero(col == value))
+        if c < need:
+            continue
+        rest = col[beyond]
+        nxt = rest.max() if value == hi else rest.min()
+        if c > int(np.count_nonzero(col == nxt)):
+            return c, float(value)
     return None
 
 

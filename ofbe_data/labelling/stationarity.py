@@ -35,6 +35,46 @@ class StaticParams:
     max_std_mps2: float = 0.3
 
 
+def _rows_of_three(x: np.ndarray) -> bool:
+    """Whether ``x`` is a C-ordered float64 (N ≥ 1, 3) array, the layout whose reductions
+    :func:`column_mean` and :func:`row_sum` reproduce."""
+    return (x.ndim == 2 and x.shape[1] == 3 and x.shape[0] > 0 and x.dtype == np.float64
+            and x.flags.c_contiguous)
+
+
+def column_mean(x: np.ndarray, scratch: np.ndarray | None = None) -> np.ndarray:
+    """``x.mean(axis=0)`` with the same bits, for an (N, 3) array, at a fraction of the cost.
+
+    numpy sums the columns of such an array row by row: for each column a sequential sum
+    that starts at 0, with the overhead of a ufunc loop per row. A cumulative sum makes the
+    same additions in the same order (+ 0.0 turns the −0.0 of an all-(−0.0) column into the
+    +0.0 that starting at 0 gives), and numpy divides the sum by N. Other shapes and layouts
+    are left to numpy.
+
+    Parameters
+    ----------
+    x
+        (N, 3) array.
+    scratch
+        Optional (N, 3) float64 buffer for the cumulative sums (overwritten).
+    """
+    if not _rows_of_three(x):
+        return x.mean(axis=0)
+    c = np.cumsum(x, axis=0, out=scratch)
+    return (c[-1] + 0.0) / x.shape[0]
+
+
+def row_sum(x: np.ndarray) -> np.ndarray:
+    """``x.sum(axis=1)`` with the same bits for an (N, 3) array: numpy adds the three as
+    ``((0 + x₀) + x₁) + x₂``; spelt out, the per-row loop overhead goes away."""
+    if not _rows_of_three(x):
+        return x.sum(axis=1)
+    out = x[:, 0] + x[:, 1]
+    out += x[:, 2]
+    out += 0.0
+    return out
+
+
 def moving_variance_norm(acc: np.ndarray, window: int) -> np.ndarray:
     """Sum over axes of the variance of ``acc`` in a sliding window.
 
@@ -51,14 +91,26 @@ def moving_variance_norm(acc: np.ndarray, window: int) -> np.ndarray:
         (m/s²)²; entry i covers samples i … i + window − 1.
     """
     x = np.asarray(acc, dtype=np.float64)
-    x = x - x.mean(axis=0)  # keeps the cumulative sums well conditioned
-    zero = np.zeros((1, x.shape[1]))
-    c1 = np.concatenate((zero, np.cumsum(x, axis=0)))
-    c2 = np.concatenate((zero, np.cumsum(x * x, axis=0)))
+    n, k = x.shape
+    # running sums with a leading row of zeros, written in place into one buffer each (the
+    # operations, and so the bits, are those of the textbook expressions in the comments)
+    c1 = np.empty((n + 1, k))
+    c1[0] = 0.0
+    x = x - column_mean(x, c1[1:] if k == 3 else None)  # keeps the cumulative sums well conditioned
+    np.cumsum(x, axis=0, out=c1[1:])
+    c2 = np.empty((n + 1, k))
+    c2[0] = 0.0
+    np.multiply(x, x, out=x)
+    np.cumsum(x, axis=0, out=c2[1:])
     s1 = c1[window:] - c1[:-window]
     s2 = c2[window:] - c2[:-window]
-    var = (s2 - s1 * s1 / window) / (window - 1)
-    return np.maximum(var, 0.0).sum(axis=1)
+    # var = (s2 − s1·s1 / window) / (window − 1)
+    np.multiply(s1, s1, out=s1)
+    s1 /= window
+    s2 -= s1
+    s2 /= window - 1
+    np.maximum(s2, 0.0, out=s2)
+    return row_sum(s2)
 
 
 @dataclass(frozen=True)
@@ -112,6 +164,8 @@ def check_static(acc: np.ndarray, fs_hz: float, params: StaticParams = StaticPar
     floor = float(np.median(v))
     threshold = min(params.variance_factor * floor, params.max_std_mps2**2)
     moving = v > threshold
+    if not moving.any():  # a still segment: every sample is static
+        return StaticCheck(np.ones(n, dtype=bool), floor, float(threshold), float(v.max()))
     # a sample is static when no window that covers it is moving
     cover = np.concatenate(([0], np.cumsum(moving)))
     lo = np.clip(np.arange(n) - window + 1, 0, v.shape[0])

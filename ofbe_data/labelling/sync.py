@@ -25,6 +25,7 @@ import numpy as np
 
 from ofbe_data.core.geometry import mul3
 from ofbe_data.io.recording import Recording
+from ofbe_data.labelling.stationarity import column_mean, row_sum
 
 
 @dataclass(frozen=True)
@@ -134,17 +135,28 @@ def highpass(t: np.ndarray, acc: np.ndarray, highpass_s: float) -> np.ndarray:
         m/s².
     """
     n = acc.shape[0]
-    x = acc - acc.mean(axis=0)
+    acc = np.asarray(acc, dtype=np.float64)
+    c = np.empty((n + 1,) + acc.shape[1:])
+    x = acc - column_mean(acc, c[1:] if n else None)
     if n < 3:
         return x
     dt = float(np.median(np.diff(t)))
     w = int(max(3, round(highpass_s / dt)) | 1)
     w = min(w, n if n % 2 else n - 1)
-    c = np.concatenate((np.zeros((1, 3)), np.cumsum(x, axis=0)))
+    c[0] = 0.0
+    np.cumsum(x, axis=0, out=c[1:])
     half = w // 2
-    lo = np.clip(np.arange(n) - half, 0, n)
-    hi = np.clip(np.arange(n) + half + 1, 0, n)
-    return x - (c[hi] - c[lo]) / (hi - lo)[:, None]
+    # sample i takes the mean of x over lo … hi − 1, hi = min(i + half + 1, n) and
+    # lo = max(i − half, 0), that is (c[hi] − c[lo]) / (hi − lo): the operations of a gather
+    # over those indices, done by slices, the interior in place
+    head = np.arange(half + 1, w, dtype=np.int64)  # hi of samples 0 … half − 1 (lo = 0)
+    tail = np.arange(w - 1, half, -1, dtype=np.int64)  # hi − lo of samples n − half … n − 1
+    x[:half] -= (c[half + 1:w] - c[0]) / head[:, None]
+    x[n - half:] -= (c[n] - c[n - w + 1:n - half]) / tail[:, None]
+    inner = c[w:] - c[:-w]
+    inner /= float(w)
+    x[half:n - half] -= inner
+    return x
 
 
 def detect_taps(t: np.ndarray, envelope: np.ndarray, params: SyncParams) -> np.ndarray:
@@ -166,13 +178,29 @@ def detect_taps(t: np.ndarray, envelope: np.ndarray, params: SyncParams) -> np.n
     """
     if envelope.size == 0:
         return np.zeros(0)
-    threshold = max(params.tap_threshold_mps2, params.tap_noise_factor * float(np.median(envelope)))
+    threshold = max(params.tap_threshold_mps2, params.tap_noise_factor * _median_at_most(
+        envelope, params.tap_threshold_mps2 / params.tap_noise_factor, params.tap_noise_factor,
+        params.tap_threshold_mps2))
     hot = np.flatnonzero(envelope > threshold)
     if hot.size == 0:
         return np.zeros(0)
     breaks = np.flatnonzero(np.diff(t[hot]) > params.tap_merge_s)
     groups = np.split(hot, breaks + 1)
     return np.array([t[g[np.argmax(envelope[g])]] for g in groups])
+
+
+def _median_at_most(x: np.ndarray, bound: float, factor: float, ceiling: float) -> float:
+    """``np.median(x)``, or ``bound`` when the median is known to be at most ``bound`` and
+    ``factor · median`` therefore cannot exceed ``ceiling`` (the only use of the value).
+
+    The median takes the sorted elements at n // 2 (and n // 2 − 1): when fewer than
+    n − n // 2 elements exceed ``bound``, both are at most ``bound``, and so is their mean. A
+    count is one pass; the partition a median needs costs several.
+    """
+    n = x.size
+    if factor > 0 and factor * bound <= ceiling and int(np.count_nonzero(x > bound)) < n - n // 2:
+        return bound
+    return float(np.median(x))
 
 
 @dataclass(frozen=True)
@@ -198,13 +226,27 @@ class TapSignals:
 def tap_signals(rec: Recording, params: SyncParams) -> TapSignals:
     """High-pass a recording, take its tap envelope and find its taps."""
     hp = highpass(rec.t, rec.acc, params.highpass_s)
-    envelope = np.linalg.norm(hp, axis=1)
+    # ‖hp‖ per row as np.linalg.norm(hp, axis=1) computes it: the squares summed by
+    # x.sum(axis=1), then the root
+    envelope = np.sqrt(row_sum(hp * hp))
     return TapSignals(hp, envelope, detect_taps(rec.t, envelope, params))
+
+
+def _window(t: np.ndarray, centre: float, half: float) -> tuple[int, int]:
+    """Samples [a, b) of increasing times ``t`` with ``|t − centre| ≤ half`` (exactly that
+    test, on a slice found by bisection: ``t − centre`` never decreases, so they are one run)."""
+    slack = 1e-6 * (1.0 + abs(centre) + half)
+    a0 = int(np.searchsorted(t, centre - half - slack, side="left"))
+    b0 = int(np.searchsorted(t, centre + half + slack, side="right"))
+    inside = np.flatnonzero(np.abs(t[a0:b0] - centre) <= half)
+    if inside.size == 0:
+        return 0, 0
+    return a0 + int(inside[0]), a0 + int(inside[-1]) + 1
 
 
 def _lag_at(t_dut: np.ndarray, x_dut: np.ndarray, t_ref: np.ndarray, x_ref: np.ndarray,
             centre_dut: float, to_ref: float, lags: np.ndarray, window_s: float,
-            ) -> tuple[float, float]:
+            ref_map: np.ndarray | None = None) -> tuple[float, float]:
     """Lag that best aligns DUT and reference signals around one tap.
 
     The DUT samples within ``window_s`` of ``centre_dut`` are compared with the reference
@@ -226,6 +268,10 @@ def _lag_at(t_dut: np.ndarray, x_dut: np.ndarray, t_ref: np.ndarray, x_ref: np.n
         (L,) candidate lags, s, evenly spaced.
     window_s
         Half-length of the comparison window, s.
+    ref_map
+        (C, C) matrix the reference's rows are multiplied by (``x_ref @ ref_map``, the
+        products of :func:`~ofbe_data.core.geometry.mul3`) before the comparison: applied to
+        the samples the search reaches only, with the same bits as mapping them all first.
 
     Returns
     -------
@@ -234,26 +280,29 @@ def _lag_at(t_dut: np.ndarray, x_dut: np.ndarray, t_ref: np.ndarray, x_ref: np.n
     peak
         Normalised correlation at the best lag (1 for identical shapes).
     """
-    sel = np.abs(t_dut - centre_dut) <= window_s
-    if sel.sum() < 5:
+    a, b = _window(t_dut, centre_dut, window_s)
+    if b - a < 5:
         return float("nan"), float("nan")
-    td, xd = t_dut[sel], x_dut[sel]
+    td, xd = t_dut[a:b], np.ascontiguousarray(x_dut[a:b])
     xd = xd - xd.mean(axis=0)
     tq = (td - to_ref)[None, :] - lags[:, None]
-    # only the reference samples the search can reach are interpolated
-    lo = max(int(np.searchsorted(t_ref, tq.min())) - 1, 0)
-    hi = int(np.searchsorted(t_ref, tq.max())) + 1
+    # only the reference samples the search can reach are interpolated; td and lags increase,
+    # so the extremes of tq are two of its corners
+    lo = max(int(np.searchsorted(t_ref, min(tq[0, 0], tq[-1, 0]))) - 1, 0)
+    hi = int(np.searchsorted(t_ref, max(tq[0, -1], tq[-1, -1]))) + 1
     tr = t_ref[lo:hi]
+    xs = x_ref[lo:hi] if ref_map is None else mul3(x_ref[lo:hi], ref_map)
     score = np.zeros(lags.size)
     energy_r = np.zeros(lags.size)
+    product = np.empty_like(tq)
     for c in range(xd.shape[1]):
         # outside the reference's span np.interp repeats its edge value: a constant, which the
         # mean removal turns into zero correlation
-        xr = np.interp(tq, tr, x_ref[lo:hi, c]) if tr.size else np.zeros_like(tq)
+        xr = np.interp(tq, tr, xs[:, c]) if tr.size else np.zeros_like(tq)
         xr -= xr.mean(axis=1, keepdims=True)
         # elementwise products and numpy's own sums, not BLAS: the same last bits on every machine
-        score += np.sum(xr * xd[:, c], axis=1)
-        energy_r += np.sum(xr * xr, axis=1)
+        score += np.sum(np.multiply(xr, xd[:, c], out=product), axis=1)
+        energy_r += np.sum(np.multiply(xr, xr, out=product), axis=1)
     score = score / np.sqrt(energy_r * float(np.sum(xd * xd)) + 1e-30)
     k = int(np.argmax(score))
     lag = float(lags[k])
@@ -338,7 +387,7 @@ def synchronise(dut: Recording, ref: Recording, reference_to_sensor: np.ndarray 
     coarse = coarse_offset(dut, ref)
     ref_sig = tap_signals(ref, params) if ref_signals is None else ref_signals
     dut_sig = tap_signals(dut, params)
-    hp_ref = mul3(ref_sig.highpassed, N.T)  # the reference's signed signal in DUT axes
+    hp_ref, to_dut = ref_sig.highpassed, N.T  # the reference's signed signal in DUT axes: hp_ref @ N.T
     hp_dut = dut_sig.highpassed
     e_ref = ref_sig.envelope[:, None]
     e_dut = dut_sig.envelope[:, None]
@@ -366,7 +415,7 @@ def synchronise(dut: Recording, ref: Recording, reference_to_sensor: np.ndarray 
             lags.append(float("nan"))
             continue
         fine, peak = _lag_at(dut.t, hp_dut, ref.t, hp_ref, start + lag + tr, start + lag, fine_lags,
-                             params.window_s)
+                             params.window_s, to_dut)
         if np.isfinite(fine) and peak >= params.min_signed_correlation:
             lag += fine
         else:
@@ -388,7 +437,7 @@ def synchronise(dut: Recording, ref: Recording, reference_to_sensor: np.ndarray 
     for tr in x:
         centre = float(offset + slope * tr)
         again.append(_lag_at(dut.t, hp_dut, ref.t, hp_ref, centre, centre - tr, fine_lags,
-                             params.window_s)[0])
+                             params.window_s, to_dut)[0])
     residual = float(np.sqrt(np.nanmean(np.square(again))))
     warning = ("signed tap signals did not match through the nominal mount at "
                + ", ".join(weak) + "; envelope alignment used there (check reference_to_sensor)"

@@ -126,9 +126,25 @@ def _estimators(method: str, split: Split, protocol: str, params: BenchmarkParam
     return [(0, make_estimator(name, **kwargs), False)]
 
 
+def _per_window(est: Estimator, fitted: bool) -> bool:
+    """Whether an estimator's predictions need no fold: no training, and each window's
+    estimate from that window and its meta row alone (the class says so with
+    ``per_window = True``, as the physics estimators do)."""
+    return not fitted and not est.needs_fit and bool(getattr(est, "per_window", False))
+
+
+def _predict(est: Estimator, windows: np.ndarray, meta: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
+    """Estimates and standard deviations (NaN without one), (N, 3) float64 each."""
+    yhat = np.asarray(est.predict(windows, meta), dtype=np.float64)
+    std = (np.asarray(est.predict_std(windows, meta), dtype=np.float64)
+           if est.has_std else np.full_like(yhat, np.nan))
+    return yhat, std
+
+
 def run_protocol(dataset: str | Path, protocol: str, params: BenchmarkParams | None = None, *,
                  models_dir: str | Path | None = None, truth_dir: str | Path | None = None,
-                 progress: bool = True) -> tuple[pd.DataFrame, dict[str, float]]:
+                 progress: bool = True, scheduler: str = "processes",
+                 ) -> tuple[pd.DataFrame, dict[str, float]]:
     """Predict every test signal of every fold with every method.
 
     Parameters
@@ -145,6 +161,12 @@ def run_protocol(dataset: str | Path, protocol: str, params: BenchmarkParams | N
         The simulator's truth folder, for the oracle.
     progress
         Show a progress bar.
+    scheduler
+        Where parallel work would run (``ofbe-benchmark --scheduler``; the names of
+        :func:`ofbe_data.core.parallel.map_progress`). Accepted so that the command line and
+        the pipeline can pass it, but the runner does not parallelise: every fold and method
+        runs in this process, one after the other (the physics estimators solve all test
+        windows of a fold at once instead), so the value changes nothing.
 
     Returns
     -------
@@ -166,18 +188,33 @@ def run_protocol(dataset: str | Path, protocol: str, params: BenchmarkParams | N
     seconds = dict.fromkeys(params.methods, 0.0)
     bar = tqdm(total=len(splits) * len(params.methods), desc=f"benchmark {protocol}", unit="fit",
                file=sys.stderr, disable=not progress)
+    # estimators that need no training and predict each window from that window alone give
+    # the same numbers in every fold: they predict every test signal of the protocol in one
+    # call (their batched solvers then work on all of them at once) and each fold takes its rows
+    every_test = np.unique(np.concatenate([sp.test for sp in splits])) if splits else np.zeros(0, int)
+    shared: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     for split in splits:
         y_test = ds.y[split.test]
+        # the fold's windows and tables, taken once for every method
+        x_test = ds.X[split.test]
+        test_meta = blind.iloc[split.test].reset_index(drop=True)
+        train: tuple[np.ndarray, np.ndarray, pd.DataFrame] | None = None
         for method in params.methods:
             t0 = time.perf_counter()
             for seed, est, fitted in _estimators(method, split, protocol, params, models, truth):
-                if est.needs_fit and not fitted:
-                    est.fit(ds.X[split.train], ds.y[split.train],
-                            blind.iloc[split.train].reset_index(drop=True))
-                test_meta = blind.iloc[split.test].reset_index(drop=True)
-                yhat = np.asarray(est.predict(ds.X[split.test], test_meta), dtype=np.float64)
-                std = (np.asarray(est.predict_std(ds.X[split.test], test_meta), dtype=np.float64)
-                       if est.has_std else np.full_like(yhat, np.nan))
+                if _per_window(est, fitted):
+                    if method not in shared:
+                        shared[method] = _predict(est, ds.X[every_test],
+                                                  blind.iloc[every_test].reset_index(drop=True))
+                    at = np.searchsorted(every_test, split.test)
+                    yhat, std = shared[method][0][at], shared[method][1][at]
+                else:
+                    if est.needs_fit and not fitted:
+                        if train is None:
+                            train = (ds.X[split.train], ds.y[split.train],
+                                     blind.iloc[split.train].reset_index(drop=True))
+                        est.fit(*train)
+                    yhat, std = _predict(est, x_test, test_meta)
                 rows.append(pd.DataFrame({
                     "dataset": split.dataset, "devices": ",".join(split.devices), "protocol": protocol,
                     "method": method, "seed": seed, "fold": split.fold,

@@ -14,6 +14,7 @@ import pandas as pd
 from scipy.optimize import least_squares
 
 from ofbe_model.estimators.base import Estimator, EstimatorError, check_inputs, register
+from ofbe_model.estimators.batched import ls_trf_batch, won2009_batch, won_iterations
 from ofbe_model.estimators.common import (
     LS_VARIANTS,
     MG,
@@ -39,6 +40,9 @@ class LevelMean(Estimator):
 
     name: ClassVar[str] = "level-mean"
     needs_fit: ClassVar[bool] = False
+    per_window: ClassVar[bool] = True
+    """Each window's estimate depends on that window and its g_local alone (the benchmark
+    runner then predicts every fold's test windows in one call)."""
 
     def predict(self, windows: np.ndarray, meta: pd.DataFrame) -> np.ndarray:
         """Bias estimates, (N, 3) m/s²."""
@@ -70,6 +74,15 @@ class LSResult:
     nfev: int
     status: int
     cost: float
+
+
+def _row_norms(d: np.ndarray) -> np.ndarray:
+    """``np.linalg.norm(d, axis=1)`` of (T, 3) rows with the same bits (numpy sums the squares
+    as (x² + y²) + z²), without numpy's per-row loop over three elements."""
+    sq = d * d
+    out = sq[:, 0] + sq[:, 1]
+    out += sq[:, 2]
+    return np.sqrt(out, out=out)
 
 
 def ls_trf_solve(f: np.ndarray, g: float, *, ridge_weight: float = 0.0,
@@ -105,12 +118,12 @@ def ls_trf_solve(f: np.ndarray, g: float, *, ridge_weight: float = 0.0,
     eye_w = w * np.eye(3)
 
     def residuals(b: np.ndarray) -> np.ndarray:
-        r = np.linalg.norm(f - b, axis=1) - g
+        r = _row_norms(f - b) - g
         return np.concatenate([r, w * (b - start)]) if w else r
 
     def jacobian(b: np.ndarray) -> np.ndarray:
         d = f - b
-        jac = -d / np.linalg.norm(d, axis=1)[:, None]
+        jac = -d / _row_norms(d)[:, None]
         return np.vstack([jac, eye_w]) if w else jac
 
     lo = -np.inf if lower is None else np.asarray(lower, dtype=np.float64)
@@ -155,6 +168,7 @@ class LSTRF(Estimator):
 
     name: ClassVar[str] = "ls-trf"
     needs_fit: ClassVar[bool] = False
+    per_window: ClassVar[bool] = True  # see LevelMean.per_window
 
     def __init__(self, variant: str = "min-norm", ridge: float = 1e-2,
                  bounds_mg: tuple[float, float, float] = (150.0, 150.0, 250.0),
@@ -196,10 +210,15 @@ class LSTRF(Estimator):
         return ls_trf_solve(w, g, **self._solver_kwargs(w.shape[0]))
 
     def predict(self, windows: np.ndarray, meta: pd.DataFrame) -> np.ndarray:
-        """Bias estimates, (N, 3) m/s² (one TRF solve per window)."""
+        """Bias estimates, (N, 3) m/s²: scipy's TRF per window, run for all windows at once
+        where there are no bounds (:func:`~ofbe_model.estimators.batched.ls_trf_batch`, the
+        same iterations; the ``bounded`` variant solves window by window)."""
         check_inputs(windows, meta)
         g = _g_local(meta)
         kw = self._solver_kwargs(np.asarray(windows).shape[1])
+        if self.variant != "bounded":
+            return ls_trf_batch(windows, g, ridge_weight=kw.get("ridge_weight", 0.0), x0=kw["x0"],
+                                max_nfev=kw["max_nfev"])
         out = np.empty((len(g), 3))
         for i in range(len(g)):
             out[i] = ls_trf_solve(np.asarray(windows[i], dtype=np.float64), float(g[i]), **kw).b
@@ -236,12 +255,19 @@ def won2009_solve(f: np.ndarray, g: float, *, tol: float = 1e-6, max_iter: int =
     """Won & Golnaraghi's iterative linear solve for the bias (paper §2.3.2), from b = 0.
 
     Each iteration: u_i = f_i − b; solve 2·u_i·δ = ‖u_i‖² − g² for δ in least squares over
-    the T samples (``numpy.linalg.lstsq``); b += δ; stop when ‖δ‖ < tol. This is
-    Gauss–Newton on the algebraic cost Σ(‖f_i − b‖² − g²)², which has the same flat valley
-    as ``ls-trf``. The design 2·U is rank 1 without noise (lstsq then gives the minimum-norm
-    δ: the along-gravity step only); with noise its two small singular values are ≈ 2σ√T,
-    condition number ≈ g/σ ≈ 200–300 for the ADXL345, not small enough for lstsq's default
-    cut-off, so the tangential steps follow the noise. ``rcond`` = 1e-2 cuts them.
+    the T samples; b += δ; stop when ‖δ‖ < tol. This is Gauss–Newton on the algebraic cost
+    Σ(‖f_i − b‖² − g²)², which has the same flat valley as ``ls-trf``. The design 2·U is
+    rank 1 without noise (the least squares step is then the minimum-norm δ: the
+    along-gravity step only); with noise its two small singular values are ≈ 2σ√T,
+    condition number ≈ g/σ ≈ 200–300 for the ADXL345, not small enough for ``lstsq``'s
+    default cut-off, so the tangential steps follow the noise. ``rcond`` = 1e-2 cuts them.
+
+    The step is ``numpy.linalg.lstsq``'s (the least squares solution through the singular
+    values of the design, those at most rcond·s_max dropped), computed from the window's
+    centred moments once instead of from the T×3 design at every iteration
+    (:func:`~ofbe_model.estimators.batched.won_iterations`, which :class:`Won2009` runs for
+    all windows at once with the same bits per window); it agrees with ``lstsq`` to
+    rounding.
 
     Parameters
     ----------
@@ -254,28 +280,17 @@ def won2009_solve(f: np.ndarray, g: float, *, tol: float = 1e-6, max_iter: int =
     max_iter
         Most linear solves.
     rcond
-        ``lstsq``'s relative cut-off for small singular values (None: numpy's default,
+        Relative cut-off for small singular values, as ``lstsq``'s (None: numpy's default,
         machine epsilon × T).
 
     Returns
     -------
     WonResult
     """
-    f = np.asarray(f, dtype=np.float64)
-    b = np.zeros(3)
-    conds: list[float] = []
-    converged = False
-    g2 = g * g
-    for _ in range(max_iter):
-        u = f - b
-        rhs = np.einsum("ij,ij->i", u, u) - g2
-        delta, _, _, sv = np.linalg.lstsq(2.0 * u, rhs, rcond=rcond)
-        conds.append(float(sv[0] / sv[-1]) if sv[-1] > 0 else math.inf)
-        b = b + delta
-        if float(np.linalg.norm(delta)) < tol:
-            converged = True
-            break
-    return WonResult(b, len(conds), converged, np.asarray(conds))
+    x = np.ascontiguousarray(np.asarray(f, dtype=np.float64).T)[None]
+    conds: list[list[float]] = [[]]
+    b, n_iter, converged = won_iterations(x, np.array([float(g)]), tol, max_iter, rcond, conds)
+    return WonResult(b[0], int(n_iter[0]), bool(converged[0]), np.asarray(conds[0]))
 
 
 @register
@@ -299,6 +314,7 @@ class Won2009(Estimator):
 
     name: ClassVar[str] = "won2009"
     needs_fit: ClassVar[bool] = False
+    per_window: ClassVar[bool] = True  # see LevelMean.per_window
 
     def __init__(self, tol: float = 1e-6, max_iter: int = 500, rcond: float | None = None) -> None:
         self.tol = tol
@@ -320,12 +336,8 @@ class Won2009(Estimator):
         return won2009_solve(window, g, tol=self.tol, max_iter=self.max_iter, rcond=self.rcond)
 
     def predict(self, windows: np.ndarray, meta: pd.DataFrame) -> np.ndarray:
-        """Bias estimates, (N, 3) m/s²."""
+        """Bias estimates, (N, 3) m/s²: :func:`won2009_solve`'s iterations for all windows at
+        once (:func:`~ofbe_model.estimators.batched.won2009_batch`)."""
         check_inputs(windows, meta)
         self._check()
-        g = _g_local(meta)
-        out = np.empty((len(g), 3))
-        for i in range(len(g)):
-            out[i] = won2009_solve(windows[i], float(g[i]), tol=self.tol, max_iter=self.max_iter,
-                                   rcond=self.rcond).b
-        return out
+        return won2009_batch(windows, _g_local(meta), tol=self.tol, max_iter=self.max_iter, rcond=self.rcond)

@@ -129,33 +129,80 @@ class _Body:
 
 
 _NUMBER_BYTES = b"0123456789+-.eE\r\n"
+_NUMBER_CHARS = b"0123456789+-.eE"  # _NUMBER_BYTES less the line ends
 _INT_LIMIT = 10**18  # the validating path accepts at most 18 digits
+_LINE_ENDS = b"\r\n"
 
 
 def _row_lines(invalid: Sequence[SkippedLine], header_line: int, lines_read: int) -> np.ndarray:
     """File line of every parsed row: the data lines less those pyarrow handed to the
     invalid-row handler, (rows,) int64."""
-    bad = np.array(sorted(s.line for s in invalid), dtype=np.int64)
     every = np.arange(header_line + 1, header_line + 1 + lines_read, dtype=np.int64)
+    if not invalid:
+        return every
+    bad = np.array(sorted(s.line for s in invalid), dtype=np.int64)
     return np.setdiff1d(every, bad, assume_unique=True)
 
 
-def _read_typed(body: bytes, header_raw: bytes, delimiter: str, wanted: Mapping[str, str],
-                parse: Callable[[bytes, dict[str, pa.DataType]], pa.Table],
+@dataclass(frozen=True)
+class _Scan:
+    """One pass over the data lines: how many there are, and whether they hold nothing but
+    number bytes, the delimiter and line ends (the typed fast path's condition)."""
+
+    lines_read: int
+    numeric: bool
+
+
+def _scan_data_lines(data: bytes, data_start: int, delimiter: str) -> _Scan:
+    """Count the data lines after the column line (which ends at ``data_start``) as
+    :func:`_count_lines` would on the body less its column line, and test their bytes.
+
+    One ``bytes.translate`` pass over the file deletes the number bytes and the delimiter;
+    what is left of the data lines is their line ends plus anything else (a few percent of
+    the file), and both answers are read off that remainder. Lone carriage returns take the
+    exact count over the original bytes (deleting a field could join a ``\r`` with the next
+    ``\n``).
+    """
+    delete = _NUMBER_CHARS + delimiter.encode()
+    rest = data.translate(None, delete)[len(data[:data_start].translate(None, delete)):]
+    numeric = not rest.translate(None, _LINE_ENDS)
+    if b"\r" in rest:
+        tail = data[data_start:]
+        ends = tail.count(b"\n") + tail.count(b"\r") - tail.count(b"\r\n")
+    else:
+        ends = rest.count(b"\n")
+    unterminated = data_start < len(data) and data[-1:] not in (b"\n", b"\r")
+    return _Scan(ends + int(unterminated), numeric)
+
+
+def _int_too_long(v: np.ndarray) -> bool:
+    """``np.abs(v).max() >= _INT_LIMIT`` without the temporary (int64: ``abs`` of the most
+    negative value stays negative, as it does there)."""
+    if not v.size:
+        return False
+    if int(v.max()) >= _INT_LIMIT:
+        return True
+    lo = int(v.min())
+    if lo > -_INT_LIMIT:
+        return False
+    if lo != np.iinfo(np.int64).min:
+        return True
+    return bool(np.any((v <= -_INT_LIMIT) & (v != lo)))
+
+
+def _read_typed(wanted: Mapping[str, str], parse: Callable[[dict[str, pa.DataType]], pa.Table],
                 ) -> tuple[pa.Table, dict[str, np.ndarray]] | None:
     """Fast path for clean files: parse straight into int64/float64 columns.
 
     Taken only when every byte after the column line is a digit, sign, point, exponent,
-    delimiter or line end, and then only when every value parses, none is empty, integers
-    have at most 18 digits and floats are finite: exactly the values the validating path
-    would accept. Anything else (garbling, junk, NaN/inf text) returns None, and the
-    validating path finds and reports it line by line.
+    delimiter or line end (the caller's :func:`_scan_data_lines`), and then only when every
+    value parses, none is empty, integers have at most 18 digits and floats are finite:
+    exactly the values the validating path would accept. Anything else (garbling, junk,
+    NaN/inf text) returns None, and the validating path finds and reports it line by line.
     """
-    if body[len(header_raw):].translate(None, _NUMBER_BYTES + delimiter.encode()):
-        return None
     types = {n: pa.int64() if k == "int" else pa.float64() for n, k in wanted.items()}
     try:
-        table = parse(body, types)
+        table = parse(types)
     except pa.ArrowInvalid:
         return None
     values: dict[str, np.ndarray] = {}
@@ -164,9 +211,10 @@ def _read_typed(body: bytes, header_raw: bytes, delimiter: str, wanted: Mapping[
         if col.null_count:
             return None
         v = col.to_numpy()
-        if kind == "int" and v.size and np.abs(v).max() >= _INT_LIMIT:
+        if kind == "int" and _int_too_long(v):
             return None
-        if kind == "float" and not np.isfinite(v).all():
+        # min and max are NaN when any value is NaN, ±inf when any is infinite
+        if kind == "float" and v.size and not (np.isfinite(v.min()) and np.isfinite(v.max())):
             return None
         values[name] = v
     return table, values
@@ -200,10 +248,7 @@ def _read_body(
     _Body
         Columns as int64 / float64 arrays over the valid lines only.
     """
-    body = data[header_offset:]
-    if body and body[-1:] not in (b"\n", b"\r"):
-        body += b"\n"  # pyarrow cannot skip a column line that has no line end
-    header_raw, _ = _next_line(body, 0)
+    header_raw, data_start = _next_line(data, header_offset)
     try:
         names = [n.strip() for n in header_raw.decode("utf-8").lstrip("\ufeff").split(delimiter)]
     except UnicodeDecodeError:
@@ -223,7 +268,7 @@ def _read_body(
                                    f"expected {row.expected_columns} fields, found {row.actual_columns}"))
         return "skip"
 
-    def parse(source: bytes, types: dict[str, pa.DataType]) -> pa.Table:
+    def parse(source: bytes | pa.Buffer, types: dict[str, pa.DataType]) -> pa.Table:
         invalid.clear()
         return pacsv.read_csv(
             pa.BufferReader(source),
@@ -234,14 +279,21 @@ def _read_body(
             convert_options=pacsv.ConvertOptions(column_types=types, include_columns=list(wanted)),
         )
 
-    lines_read = _count_lines(body) - 1
-    fast = _read_typed(body, header_raw, delimiter, wanted, parse)
-    if fast is not None:
-        table, values = fast
-        row_lines = _row_lines(invalid, header_line, lines_read)
-        if row_lines.shape[0] == table.num_rows:
-            return _Body(values, row_lines, lines_read, sorted(invalid, key=lambda s: s.line), path,
-                         header_line)
+    terminated = not data or data[-1:] in (b"\n", b"\r")
+    scan = _scan_data_lines(data, data_start, delimiter)
+    lines_read = scan.lines_read
+    if scan.numeric:
+        # the body as a view of the file's bytes (no copy), unless its last line needs an end:
+        # pyarrow cannot skip a column line that has no line end
+        source = pa.py_buffer(data).slice(header_offset) if terminated else data[header_offset:] + b"\n"
+        fast = _read_typed(wanted, lambda types: parse(source, types))
+        if fast is not None:
+            table, values = fast
+            row_lines = _row_lines(invalid, header_line, lines_read)
+            if row_lines.shape[0] == table.num_rows:
+                return _Body(values, row_lines, lines_read, sorted(invalid, key=lambda s: s.line), path,
+                             header_line)
+    body = data[header_offset:] if terminated else data[header_offset:] + b"\n"
     try:
         # pyarrow decodes an invalid row's text as UTF-8 before calling the handler, so
         # bytes >= 0x80 (never valid in a number) are masked for parsing; messages
@@ -348,6 +400,10 @@ def _clean_times(body: _Body, t: np.ndarray, max_step: float, modulus: int | Non
         When no sample is left: every reader ends its line checks here.
     """
 
+    clean = _clean_times_fast(t, max_step, modulus)
+    if clean is not None:
+        return clean
+
     def steps(x: np.ndarray) -> np.ndarray:
         d = np.diff(x)
         return d % modulus if modulus is not None else d
@@ -389,6 +445,42 @@ def _clean_times(body: _Body, t: np.ndarray, max_step: float, modulus: int | Non
     out = np.empty(t.shape, dtype=np.float64)
     out[0] = t[0]
     out[1:] = float(t[0]) + np.cumsum(d, dtype=np.float64 if modulus is None else np.int64)
+    return out, wraps
+
+
+def _clean_times_fast(t: np.ndarray, max_step: float, modulus: int | None
+                      ) -> tuple[np.ndarray, int] | None:
+    """:func:`_clean_times` of a series whose every step (modulo ``modulus``) is normal, in
+    a few passes; None when some step is not, and the caller takes the general path.
+
+    Every step in (0, max_step] means no spike and nothing backward: nothing is dropped, and
+    the result is the one the general path computes from the same steps (for plain times,
+    also when the running sum of the steps keeps increasing, as it then checks).
+    """
+    if t.size < 2:
+        return None
+    d = np.diff(t)
+    wraps = 0
+    if modulus is not None:
+        if not max_step < modulus // 2:  # a backward step must be abnormal for the shortcut
+            return None
+        back = d < 0
+        wraps = int(np.count_nonzero(back))
+        if wraps:
+            if not (int(t.min()) >= 0 and int(t.max()) < modulus):
+                return None
+            d = d + back * modulus  # d % modulus for steps between two counter values
+    if not (d.min() > 0 and d.max() <= max_step):
+        return None
+    out = np.empty(t.shape, dtype=np.float64)
+    out[0] = t[0]
+    if modulus is None:
+        u = np.cumsum(d, dtype=np.float64)
+        if not bool(np.all(u[1:] > u[:-1])):  # the running sum stalled (tiny steps): general path
+            return None
+        out[1:] = float(t[0]) + u
+    else:
+        out[1:] = float(t[0]) + np.cumsum(d, dtype=np.int64)
     return out, wraps
 
 

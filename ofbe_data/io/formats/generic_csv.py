@@ -18,7 +18,6 @@ per axis). An optional temperature column goes to ``extra[TEMPERATURE]`` in °C.
 
 from __future__ import annotations
 
-import re
 from collections.abc import Sequence
 from datetime import UTC, datetime
 from pathlib import Path
@@ -105,8 +104,20 @@ def _to_commas(buf: bytes, delimiter: str) -> bytes:
     """Data lines with ``delimiter`` turned into commas; a comma that is not the delimiter is
     a decimal comma and becomes a point."""
     if delimiter == WHITESPACE:
-        buf = re.sub(rb"(?m)^[ \t]+|[ \t]+(?=\r?$)", b"", buf)
-        return re.sub(rb"[ \t]+", b",", buf)
+        # every run of spaces/tabs becomes one comma (vectorised), then leading and trailing
+        # commas of a line go
+        b = np.frombuffer(buf, dtype=np.uint8)
+        ws = (b == 0x20) | (b == 0x09)
+        first = ws.copy()
+        first[1:] &= ~ws[:-1]
+        keep = ~ws | first
+        out = b[keep].copy()
+        out[first[keep]] = 0x2C
+        buf = out.tobytes()
+        for end in (b"\n", b"\r"):
+            buf = buf.replace(end + b",", end).replace(b"," + end, end)
+        buf = buf[1:] if buf.startswith(b",") else buf
+        return buf[:-1] if buf.endswith(b",") else buf
     if delimiter == ",":
         return buf
     if b"," in buf:
