@@ -35,12 +35,12 @@ from ofbe_data.calibration.results import (
     Collected,
     Segment,
     attach_file_times,
-    sha256_of,
 )
 from ofbe_data.io.formats import read_device_file
 from ofbe_data.io.manifest import SessionManifest, load_manifest
 from ofbe_data.io.recording import Recording
 from ofbe_data.labelling.allan import AllanResult, allan_deviation, combine, default_taus, white_noise_level
+from ofbe_data.labelling.labels import sha256_file
 
 MIN_CLUSTERS = 3
 """Fewest clusters (segment length / tau) of the shortest segment at every tau analysed."""
@@ -224,7 +224,7 @@ class RawFiles:
                                              f"devices {', '.join(sorted(m.devices))}")
             if not path.is_file():
                 raise CalibrationSourceError(f"{path}: expected the labelled raw file, found no such file")
-            if seg.raw_sha256 and sha256_of(path) != seg.raw_sha256:
+            if seg.raw_sha256 and sha256_file(path) != seg.raw_sha256:
                 raise CalibrationSourceError(f"{path}: expected the bytes that were labelled (SHA-256 "
                                              f"{seg.raw_sha256[:12]}…), found a different file")
             self._recordings[key] = read_device_file(path, m.devices[device])

@@ -22,7 +22,6 @@ raw recordings behind the labels (start times, stationary samples) in
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 import os
@@ -36,6 +35,7 @@ import numpy as np
 import pandas as pd
 
 from ofbe_data.core.errors import OfbeError
+from ofbe_data.labelling.labels import sha256_file
 from ofbe_data.labelling.store import read_labels, read_provenance
 
 ZERO_G_OFFSET = "zero-g-offset"
@@ -198,15 +198,6 @@ class Collected:
     skipped: tuple[str, ...] = ()
 
 
-def sha256_of(path: str | Path) -> str:
-    """Hex SHA-256 of a file's bytes."""
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
-
-
 def _vec(values: Any) -> tuple[float, float, float]:
     a = np.asarray(values, dtype=np.float64).reshape(3)
     return float(a[0]), float(a[1]), float(a[2])
@@ -351,7 +342,7 @@ def results_from_labels(path: str | Path) -> Collected:
     if rows.empty:
         raise CalibrationSourceError(f"{path}: expected labelled recordings, found none (every recording "
                                      "was rejected? see the <session>.rejected.json files)")
-    hashes = {f: sha256_of(f) for f in files}
+    hashes = {f: sha256_file(f) for f in files}
     results = []
     for (device, pc), group in rows.groupby(["device", "power_cycle"], sort=True):
         results.append(_group_result(str(device), int(pc), group, files, hashes))
@@ -397,7 +388,7 @@ def results_from_predictions(path: str | Path) -> Collected:
     if not (isinstance(doc, dict) and isinstance(doc.get("results"), list)):
         raise CalibrationSourceError(f"{path}: expected ofbe-predict's JSON object with a 'results' list, "
                                      f"found {type(doc).__name__}")
-    sha = sha256_of(path)
+    sha = sha256_file(path)
     method = str(doc.get("method") or "unknown")
     model = None if doc.get("model") is None else str(doc["model"])
     results, skipped = [], []
