@@ -3,7 +3,8 @@
 Reads ``train`` (OFBENet parameters), ``train_run`` (parallel fits, an optional
 ``scheduler``) and ``benchmark_run``
 (which protocols run on which datasets) from params.yaml; all logic lives in
-:mod:`ofbe_model.ofbenet.training`.
+:mod:`ofbe_model.ofbenet.training`. Every dataset is trained under each benchmark protocol
+it has (its ``fold_<protocol>`` columns, which ``dataset.protocols`` decides).
 """
 
 from __future__ import annotations
@@ -19,14 +20,12 @@ def main(params_file: str = "params.yaml") -> int:
     run = params["benchmark_run"]
     jobs = str(params.get("train_run", {}).get("jobs", 1))
     scheduler = str(params.get("train_run", {}).get("scheduler", "processes"))
+    campaigns = list(dict.fromkeys(c for names in run["protocols"].values() for c in names))
     with resolved_params_file(params_file) as resolved:
-        for protocol, campaigns in run["protocols"].items():
-            for name in campaigns:
-                code = train_main([f"processed/datasets/{name}", "--protocol", protocol, "--out", "models/cv",
-                                   "--params", resolved, "--jobs", jobs, "--scheduler", scheduler])
-                if code:
-                    return code
-    return 0
+        # one call: every dataset under each benchmark protocol it has, all fits in one pool
+        return train_main([*(f"processed/datasets/{c}" for c in campaigns), "--protocol", *run["protocols"],
+                           "--out", "models/cv", "--params", resolved, "--jobs", jobs,
+                           "--scheduler", scheduler])
 
 
 if __name__ == "__main__":

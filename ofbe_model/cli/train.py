@@ -1,5 +1,8 @@
-"""``ofbe-train``: OFBENet on every fold (and seed) of a windowed dataset under one protocol
+"""``ofbe-train``: OFBENet on every fold (and seed) of windowed datasets under their protocols
 (ofbe_model.ofbenet.training).
+
+Several datasets and protocols may be named at once: each dataset is trained under each named
+protocol it has, and all the fits share one pool of workers.
 """
 
 from __future__ import annotations
@@ -27,10 +30,12 @@ PROG = "ofbe-train"
 
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog=PROG,
-                                description="Train OFBENet on every fold of a windowed dataset under one "
-                                            "protocol; write models, histories, curves and a summary.")
-    p.add_argument("dataset", help="dataset folder (processed/datasets/<name>)")
-    p.add_argument("--protocol", required=True, help="protocol: a fold_<protocol> column of the dataset")
+                                description="Train OFBENet on every fold of windowed datasets under their "
+                                            "protocols; write models, histories, curves and a summary.")
+    p.add_argument("dataset", nargs="+", help="dataset folder(s) (processed/datasets/<name>)")
+    p.add_argument("--protocol", required=True, nargs="+",
+                   help="protocol(s): fold_<protocol> columns; each dataset is trained under each "
+                        "of these it has, all fits in one pool")
     p.add_argument("--out", default="models", help="models folder (default: models)")
     p.add_argument("--folds", type=int, nargs="+", metavar="K", help="train only these folds (default: all)")
     p.add_argument("--max-epochs", type=int, help="override train.max_epochs")
@@ -57,29 +62,33 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     # TensorFlow is imported only now: --help answers at once, and its start-up lines stay quiet
     quiet_libraries(args.verbose)
-    from ofbe_model.ofbenet.training import _Usage, read_params, read_seed_count, train
+    from ofbe_model.ofbenet.training import _Usage, plan_runs, read_params, read_seed_count, train_many
 
     try:
         params = read_params(args.params, args.max_epochs)
         seeds = read_seed_count(args.params, args.seeds)
         if args.jobs < 1:
             raise ConfigError("command line", "--jobs", "an integer >= 1", str(args.jobs))
-        fold_column(args.protocol)
+        for protocol in args.protocol:
+            fold_column(protocol)
     except OfbeError as exc:
         return fail(PROG, str(exc), 2)
-    dataset = Path(args.dataset)
-    if not dataset.is_dir():
-        return fail(PROG, f"{dataset}: expected a dataset folder, found no such folder", 2)
+    datasets = [Path(d) for d in args.dataset]
+    for dataset in datasets:
+        if not dataset.is_dir():
+            return fail(PROG, f"{dataset}: expected a dataset folder, found no such folder", 2)
     t0 = time.perf_counter()
     try:
-        written = train(dataset, args.protocol, args.out, params, args.folds, progress=not args.quiet,
-                        seeds=seeds, jobs=args.jobs, scheduler=args.scheduler)
+        runs = plan_runs(datasets, args.protocol)
+        written = train_many(runs, args.out, params, args.folds, progress=not args.quiet,
+                             seeds=seeds, jobs=args.jobs, scheduler=args.scheduler)
     except _Usage as exc:
         return fail(PROG, str(exc), 2)
     except (OfbeError, OSError) as exc:
         return fail(PROG, str(exc), 1)
     if not args.quiet:
-        print(f"{PROG}: trained {args.protocol} on {dataset} in {time.perf_counter() - t0:.0f} s; summaries: "
+        what = ", ".join(f"{d} {p}" for d, p in runs)
+        print(f"{PROG}: trained {what} in {time.perf_counter() - t0:.0f} s; summaries: "
               f"{', '.join(map(str, written))}", file=sys.stderr)
     return 0
 

@@ -273,7 +273,8 @@ do not gain from a second thread (a fit on two cores took 18.7 s, on one 16.1 s)
 single-threaded workers train two fits at once; and since the thread count is the same
 whatever ``--jobs``, so are the weights."""
 
-_CACHE: dict[str, Any] = {}
+_CACHE: dict[str, Any] = {"datasets": {}, "splits": {}}
+"""A worker's loaded datasets (by path) and protocol splits (by path and protocol)."""
 
 
 @dataclass(frozen=True)
@@ -289,33 +290,98 @@ class FitTask:
 
 
 def _fit_task(task: FitTask) -> tuple[dict[str, Any], dict[str, list[float]]]:
-    """Run one :class:`FitTask` (in a worker; the dataset is loaded once per worker)."""
-    if _CACHE.get("path") != task.dataset:
-        ds = load_dataset(task.dataset)
-        _CACHE.update(path=task.dataset, ds=ds, splits=list(protocol_splits(ds.meta, str(ds.info["kind"]),
-                                                                              task.protocol)))
-    ds = _CACHE["ds"]
-    split = next(s for s in _CACHE["splits"] if s.dataset == task.name and s.fold == task.fold)
+    """Run one :class:`FitTask` (in a worker; each dataset is loaded once per worker, and a
+    worker may get fits of several datasets and protocols)."""
+    datasets, all_splits = _CACHE["datasets"], _CACHE["splits"]
+    if task.dataset not in datasets:
+        datasets[task.dataset] = load_dataset(task.dataset)
+    ds = datasets[task.dataset]
+    key = (task.dataset, task.protocol)
+    if key not in all_splits:
+        all_splits[key] = list(protocol_splits(ds.meta, str(ds.info["kind"]), task.protocol))
+    split = next(s for s in all_splits[key] if s.dataset == task.name and s.fold == task.fold)
     return train_fold(ds.X, ds.y, ds.meta, split, task.params, Path(task.folder))
+
+
+def plan_runs(datasets: Sequence[str | Path], protocols: Sequence[str]) -> list[tuple[str | Path, str]]:
+    """(dataset, protocol) runs: each dataset under each of ``protocols`` it has, in the order given.
+
+    Raises
+    ------
+    _Usage
+        A protocol that none of the datasets has, or a dataset that has none of them.
+    OfbeError
+        A dataset that cannot be read.
+    """
+    runs: list[tuple[str | Path, str]] = []
+    used: set[str] = set()
+    for dataset in datasets:
+        have = [c.removeprefix("fold_") for c in load_dataset(dataset).meta.columns if c.startswith("fold_")]
+        mine = [p for p in protocols if p in have]
+        if not mine:
+            raise _Usage(f"--protocol: expected one of the protocols of {dataset} "
+                         f"({', '.join(sorted(have))}), found {', '.join(repr(p) for p in protocols)}")
+        runs += [(dataset, p) for p in mine]
+        used.update(mine)
+    missing = [p for p in protocols if p not in used]
+    if missing:
+        raise _Usage(f"--protocol: expected protocols of the datasets given, found "
+                     f"{', '.join(map(repr, missing))} in none of them")
+    return runs
 
 
 def train(dataset: str | Path, protocol: str, out: str | Path, params: OFBENetParams,
           folds: Sequence[int] | None = None, progress: bool = True, seeds: int = DEFAULT_SEEDS,
           jobs: int = 1, scheduler: str = "processes") -> list[Path]:
-    """Train every (selected) fold of every benchmark dataset of one windowed dataset.
+    """Train every (selected) fold of every benchmark dataset of one windowed dataset under one
+    protocol: :func:`train_many` with one run."""
+    return train_many([(dataset, protocol)], out, params, folds, progress, seeds, jobs, scheduler)
+
+
+def _run_splits(dataset: str | Path, protocol: str, folds: Sequence[int] | None
+                ) -> tuple[Any, list[Split]]:
+    """The loaded dataset and the selected folds of one protocol (raises :class:`_Usage`)."""
+    ds = load_dataset(dataset)
+    meta = ds.meta
+    col = fold_column(protocol)
+    if col not in meta.columns:
+        have = sorted(c.removeprefix("fold_") for c in meta.columns if c.startswith("fold_"))
+        raise _Usage(f"--protocol: expected one of the protocols of {dataset} ({', '.join(have)}), "
+                     f"found {protocol!r}")
+    splits = list(protocol_splits(meta, str(ds.info["kind"]), protocol))
+    available = sorted({s.fold for s in splits})
+    if folds is not None:
+        unknown = sorted(set(folds) - set(available))
+        if unknown:
+            raise _Usage(f"--folds: expected folds of {protocol} ({', '.join(map(str, available))}), "
+                         f"found {', '.join(map(str, unknown))}")
+        splits = [s for s in splits if s.fold in set(folds)]
+    return ds, splits
+
+
+def train_many(runs: Sequence[tuple[str | Path, str]], out: str | Path, params: OFBENetParams,
+               folds: Sequence[int] | None = None, progress: bool = True, seeds: int = DEFAULT_SEEDS,
+               jobs: int = 1, scheduler: str = "processes") -> list[Path]:
+    """Train every (selected) fold of every benchmark dataset of several (dataset, protocol)
+    runs, all fits in one pool.
+
+    The fits of every run are one list of tasks, the largest training sets first, so that
+    ``jobs`` workers stay busy to the end instead of waiting at the end of each run (longest
+    first is the classic greedy bound for scheduling independent jobs). A fit's model does
+    not depend on which worker trains it or when: the outputs are those of training each run
+    alone.
 
     Parameters
     ----------
-    dataset
-        Dataset folder (``processed/datasets/<name>``).
-    protocol
-        A protocol of the dataset (a ``fold_<protocol>`` column).
+    runs
+        (dataset folder ``processed/datasets/<name>``, protocol) pairs; the protocol must be
+        one of the dataset's (a ``fold_<protocol>`` column).
     out
         Models folder.
     params
         OFBENet parameters; ``params.seed`` is the first training seed.
     folds
-        Fold indices to train (all when None).
+        Fold indices to train in every run (all when None).
     progress
         A progress bar on stderr over the fits (folds × seeds), naming the last one finished
         and its epochs; the per-epoch history goes to the history CSVs and ``training.json``.
@@ -332,7 +398,7 @@ def train(dataset: str | Path, protocol: str, out: str | Path, params: OFBENetPa
     Returns
     -------
     list of Path
-        The ``training.json`` files written.
+        The ``training.json`` files written, one per benchmark dataset and run.
 
     Raises
     ------
@@ -343,45 +409,49 @@ def train(dataset: str | Path, protocol: str, out: str | Path, params: OFBENetPa
         (:class:`~ofbe_model.estimators.base.EstimatorError`), or a fit whose worker process
         died (:class:`~ofbe_data.core.parallel.TaskError`); the other fits are finished first.
     """
-    ds = load_dataset(dataset)
-    meta = ds.meta
-    col = fold_column(protocol)
-    if col not in meta.columns:
-        have = sorted(c.removeprefix("fold_") for c in meta.columns if c.startswith("fold_"))
-        raise _Usage(f"--protocol: expected one of this dataset's protocols ({', '.join(have)}), "
-                     f"found {protocol!r}")
-    splits = list(protocol_splits(meta, str(ds.info["kind"]), protocol))
-    available = sorted({s.fold for s in splits})
-    if folds is not None:
-        unknown = sorted(set(folds) - set(available))
-        if unknown:
-            raise _Usage(f"--folds: expected folds of {protocol} ({', '.join(map(str, available))}), "
-                         f"found {', '.join(map(str, unknown))}")
-        splits = [s for s in splits if s.fold in set(folds)]
     out = Path(out)
-    tasks = []
-    for split in splits:
-        folder = out / dataset_dirname(split.dataset) / protocol
-        folder.mkdir(parents=True, exist_ok=True)
-        tasks += [FitTask(str(dataset), protocol, split.dataset, split.fold,
-                          dataclasses.replace(params, seed=params.seed + i), str(folder))
-                  for i in range(seeds)]
-    results = map_progress(_fit_task, tasks, jobs=jobs, desc=f"{PROG} {protocol}", unit="fit",
-                           progress=progress, worker_env=WORKER_ENV, scheduler=scheduler,
-                           postfix=lambda r: f"fold {r[0]['fold']} seed {r[0]['seed']}: "
-                                             f"{r[0]['epochs_run']} epochs",
-                           name=lambda t: f"{t.name} {protocol} fold {t.fold} seed {t.params.seed}")
+    loaded = [(str(dataset), protocol, *_run_splits(dataset, protocol, folds))
+              for dataset, protocol in runs]
+    tasks: list[tuple[int, FitTask]] = []
+    for dataset, protocol, _, splits in loaded:
+        for split in splits:
+            folder = out / dataset_dirname(split.dataset) / protocol
+            folder.mkdir(parents=True, exist_ok=True)
+            tasks += [(int(split.train.size), FitTask(dataset, protocol, split.dataset, split.fold,
+                                                      dataclasses.replace(params, seed=params.seed + i),
+                                                      str(folder)))
+                      for i in range(seeds)]
+    order = sorted(range(len(tasks)), key=lambda i: -tasks[i][0])  # stable: ties keep their order
+    ordered = [tasks[i][1] for i in order]
+    desc = f"{PROG} {loaded[0][1]}" if len(loaded) == 1 else f"{PROG} {len(loaded)} runs"
+    results = map_progress(_fit_task, ordered, jobs=jobs, desc=desc, unit="fit", progress=progress,
+                           worker_env=WORKER_ENV, scheduler=scheduler,
+                           postfix=lambda r: (f"fold {r[0]['fold']} seed {r[0]['seed']}: "
+                                              f"{r[0]['epochs_run']} epochs"),
+                           name=lambda t: f"{t.name} {t.protocol} fold {t.fold} seed {t.params.seed}")
+    done = {(t.dataset, t.protocol, t.name, t.fold, t.params.seed): r
+            for t, r in zip(ordered, results, strict=True)}
+    written: list[Path] = []
+    for dataset, protocol, ds, splits in loaded:
+        ran = {(n, f, seed): r for (d, p, n, f, seed), r in done.items() if d == dataset and p == protocol}
+        written += _write_summaries(dataset, protocol, ds, splits, ran, out, params)
+    return written
+
+
+def _write_summaries(dataset: str, protocol: str, ds: Any, splits: Sequence[Split],
+                     done: Mapping[tuple[str, int, int], tuple[dict[str, Any], dict[str, list[float]]]],
+                     out: Path, params: OFBENetParams) -> list[Path]:
+    """``training.json`` and the training curves of one run's benchmark datasets."""
     written: list[Path] = []
     by_dataset: dict[str, list[Split]] = {}
     for s in splits:
         by_dataset.setdefault(s.dataset, []).append(s)
-    done = {(t.name, t.fold, t.params.seed): r for t, r in zip(tasks, results, strict=True)}
     for name, group in by_dataset.items():
         folder = out / dataset_dirname(name) / protocol
         summary_path = folder / SUMMARY_NAME
         entries = _read_summary(summary_path, name, protocol)
         entries.update({(f, seed): r[0] for (n, f, seed), r in done.items() if n == name})
-        summary = {"format": SUMMARY_FORMAT, "dataset": name, "dataset_path": str(dataset),
+        summary = {"format": SUMMARY_FORMAT, "dataset": name, "dataset_path": dataset,
                    "protocol": protocol, "kind": str(ds.info["kind"]), "devices": list(group[0].devices),
                    "window_length": int(ds.X.shape[1]), "loss": loss_label(params),
                    "folds": [entries[k] for k in sorted(entries)]}

@@ -276,11 +276,14 @@ def test_load_refuses_a_bad_sidecar(tmp_path, saved) -> None:
 # ofbe-train
 
 
-def _tiny_dataset(path: Path) -> None:
-    """Rotated-kind dataset, 2 devices × 10 power cycles × 2 windows of T samples, grouped folds."""
+def _tiny_dataset(path: Path, two_protocols: bool = False) -> None:
+    """Rotated-kind dataset, 2 devices × 10 power cycles × 2 windows of T samples, grouped folds
+    (and paper-rotated folds, another assignment of the power cycles, with ``two_protocols``)."""
+    protocols = {"grouped": {"description": "by power cycle", "n_folds": 5, "seed": 0}}
+    if two_protocols:
+        protocols["paper-rotated"] = {"description": "power cycles modulo 5", "n_folds": 5, "seed": 0}
     info = DatasetInfo(name="tiny", campaign="c", kind="rotated", title="t", description="d", labelling="l",
-                       window_length=T, stride=T, fs_hz=150.0,
-                       protocols={"grouped": {"description": "by power cycle", "n_folds": 5, "seed": 0}})
+                       window_length=T, stride=T, fs_hz=150.0, protocols=protocols)
     rng = np.random.default_rng(0)
     with atomic_directory(path) as tmp, WindowWriter(tmp, info) as w:
         for dev in ("d1", "d2"):
@@ -294,7 +297,8 @@ def _tiny_dataset(path: Path) -> None:
                     "gravity_x": [0.0] * 2, "gravity_y": [0.0] * 2, "gravity_z": [1.0] * 2,
                     "roll_deg": [0.0] * 2, "pitch_deg": [0.0] * 2, "g_local": [G] * 2,
                     "fs_hz": [150.0] * 2, "label_method": ["level"] * 2, "raw_sha256": ["0" * 64] * 2,
-                    "fold_grouped": [i // 2] * 2})
+                    "fold_grouped": [i // 2] * 2,
+                    **({"fold_paper-rotated": [i % 5] * 2} if two_protocols else {})})
                 x = b + np.array([0.0, 0.0, G]) + rng.normal(0.0, 0.05, size=(2, T, 3))
                 w.append(x, meta)
 
@@ -366,7 +370,8 @@ def test_ofbe_train_usage_errors_exit_2(tiny, tmp_path, capsys, write_text) -> N
     assert main([*base, "--protocol", "grouped", "--params", str(out_of_range)]) == 2
     assert "train.validation_split" in capsys.readouterr().err
     assert main([*base, "--protocol", "paper-rotated"]) == 2
-    assert "expected one of this dataset's protocols (grouped)" in capsys.readouterr().err
+    assert capsys.readouterr().err.strip() == ("ofbe-train: error: --protocol: expected one of the protocols "
+                                               f"of {tiny} (grouped), found 'paper-rotated'")
     assert main([*base, "--protocol", "grouped", "--folds", "7"]) == 2
     assert main([str(tmp_path / "nope"), "--protocol", "grouped"]) == 2
     assert main([*base, "--protocol", "grouped", "--max-epochs", "0"]) == 2
@@ -414,3 +419,36 @@ def test_the_models_do_not_depend_on_the_number_of_workers(tiny, tmp_path) -> No
     for rel in models:
         weights = [zipfile.ZipFile(tmp_path / j / rel).read("model.weights.h5") for j in ("1", "2")]
         assert weights[0] == weights[1], rel
+
+
+def test_one_pool_over_several_protocols_trains_what_each_protocol_alone_does(tmp_path, capsys) -> None:
+    """Two protocols of one dataset in one call (one worker gets the fits of both, the largest
+    training sets first) give the models and summaries of training each protocol alone."""
+    import zipfile
+
+    data = tmp_path / "two"
+    _tiny_dataset(data, two_protocols=True)
+    common = ["--folds", "0", "--max-epochs", "2", "--jobs", "1", "--quiet"]
+    for protocol in ("grouped", "paper-rotated"):
+        assert main([str(data), "--protocol", protocol, "--out", str(tmp_path / "alone"), *common]) == 0
+    assert main([str(data), "--protocol", "grouped", "paper-rotated", "--out", str(tmp_path / "pooled"),
+                 *common]) == 0
+    models = sorted(p.relative_to(tmp_path / "alone") for p in (tmp_path / "alone").rglob("*.keras"))
+    assert len(models) == 4 and {m.parts[1] for m in models} == {"grouped", "paper-rotated"}
+    for rel in models:
+        weights = [zipfile.ZipFile(tmp_path / r / rel).read("model.weights.h5") for r in ("alone", "pooled")]
+        assert weights[0] == weights[1], rel
+    for summary in (tmp_path / "alone").rglob("training.json"):
+        rel = summary.relative_to(tmp_path / "alone")
+        runs = [json.loads((tmp_path / r / rel).read_text()) for r in ("alone", "pooled")]
+        for run in runs:
+            for entry in run["folds"]:
+                entry.pop("seconds")
+        assert runs[0] == runs[1], rel
+    assert main([str(data), str(tmp_path / "missing"), "--protocol", "grouped"]) == 2
+    missing = tmp_path / "missing"
+    assert capsys.readouterr().err.strip() == (f"ofbe-train: error: {missing}: expected a dataset folder, "
+                                               "found no such folder")
+    assert main([str(data), "--protocol", "grouped", "paper-gravity"]) == 2
+    assert capsys.readouterr().err.strip() == ("ofbe-train: error: --protocol: expected protocols of the "
+                                               "datasets given, found 'paper-gravity' in none of them")
