@@ -273,6 +273,18 @@ class _TRF:
 
     def __init__(self, f: np.ndarray, g: np.ndarray, ridge_weight: float, start: np.ndarray,
                  max_nfev: int) -> None:
+        self._setup(f, g, ridge_weight, start, max_nfev)
+        n = f.shape[0]
+        # at the current point: cost, gradient Jᵀf, the factor R and its basis Q₀, and the
+        # SVD of the Jacobian as the subproblem uses it: s (descending), V and Uᵀf
+        ev = self._evaluate(np.arange(n), self.x)
+        self.cost, self.grad, self.r, self.q0, self.s, self.vec, self.uf = ev[:7]
+        norm0 = np.sqrt(np.einsum("nk,nk->n", self.x, self.x))
+        self.delta = np.where(norm0 == 0.0, 1.0, norm0)
+
+    def _setup(self, f: np.ndarray, g: np.ndarray, ridge_weight: float, start: np.ndarray,
+               max_nfev: int) -> None:
+        """The problem's data, buffers, the start (x = start) and the counters."""
         self.f, self.g = f, g
         n, _, t = f.shape
         self.mean = f.mean(axis=2)
@@ -285,18 +297,32 @@ class _TRF:
         self.m = t + (3 if self.w2 else 0)
         self.max_nfev = max_nfev
         self.x = np.repeat(start[None, :], n, axis=0)
-        # at the current point: cost, gradient Jᵀf, the factor R and its basis Q₀, and the
-        # SVD of the Jacobian as the subproblem uses it: s (descending), V and Uᵀf
-        ev = self._evaluate(np.arange(n), self.x)
-        self.cost, self.grad, self.r, self.q0, self.s, self.vec, self.uf = ev[:7]
         self.nfev = np.ones(n, dtype=np.int64)
-        norm0 = np.sqrt(np.einsum("nk,nk->n", self.x, self.x))
-        self.delta = np.where(norm0 == 0.0, 1.0, norm0)
         self.alpha = np.zeros(n)
 
     def _evaluate(self, idx: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, ...]:
         """At points x of windows idx: cost, gradient Jᵀf, R, Q₀, s, V, Uᵀf and whether the
-        residuals are finite.
+        residuals are finite (:meth:`_point`, then the SVD the subproblem uses)."""
+        cost, grad, r, q0, g_rot, finite = self._point(idx, x)
+        # J·Q₀ = Q·R, so Qᵀf = R⁻ᵀ·Q₀ᵀJᵀf; with a ridge the Jacobian [J; w·I] is, rotated,
+        # blockdiag(Q, I)·[R; w·Q₀]. The SVD of that 3×3 (6×3) matrix, U·S·Vᵀ, gives J's
+        # singular values, its right singular vectors Q₀·V and scipy's Uᵀf as Uᵀ·[Qᵀf; w·Δx]
+        qf = _forward3(r, g_rot)
+        if self.w2:
+            dx = x - self.start
+            m = np.concatenate([r, self.w * q0], axis=1)
+            z = np.concatenate([qf, self.w * dx], axis=1)
+            cost += 0.5 * self.w2 * np.einsum("nk,nk->n", dx, dx)
+            grad += self.w2 * dx
+        else:
+            m, z = r, qf
+        u_m, sv, vt = np.linalg.svd(m, full_matrices=False)
+        vec = np.matmul(q0, vt.transpose(0, 2, 1))
+        return cost, grad, r, q0, sv, vec, np.einsum("nkj,nk->nj", u_m, z), finite
+
+    def _point(self, idx: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, ...]:
+        """The data term at points x (k, 3) of windows idx: cost ½Σr², gradient Jᵀf, the
+        factor R and basis Q₀ (J·Q₀ = Q·R), Q₀ᵀ·Jᵀf, and whether the residuals are finite.
 
         The unit vectors u_i = (f_i − b)/‖f_i − b‖ are all close to h = (μ − b)/‖μ − b‖, the
         mean direction of the samples: Σ u uᵀ is formed from v_i = u_i − h, whose entries are
@@ -328,25 +354,9 @@ class _TRF:
         gram = vv + h[:, :, None] * sv1[:, None, :] + sv1[:, :, None] * h[:, None, :]
         gram = np.einsum("nki,nkl,nlj->nij", q0, gram, q0)
         gram[:, 0, 0] += t
-        g_orig = -(np.einsum("nkt,nt->nk", d, res) + h * res.sum(axis=1)[:, None])
-        g_rot = np.einsum("nki,nk->ni", q0, g_orig)  # Q₀ᵀ·Jᵀf
-        r = _cholesky3(gram)
-        grad = g_orig
-        # J·Q₀ = Q·R, so Qᵀf = R⁻ᵀ·Q₀ᵀJᵀf; with a ridge the Jacobian [J; w·I] is, rotated,
-        # blockdiag(Q, I)·[R; w·Q₀]. The SVD of that 3×3 (6×3) matrix, U·S·Vᵀ, gives J's
-        # singular values, its right singular vectors Q₀·V and scipy's Uᵀf as Uᵀ·[Qᵀf; w·Δx]
-        qf = _forward3(r, g_rot)
-        if self.w2:
-            dx = x - self.start
-            m = np.concatenate([r, self.w * q0], axis=1)
-            z = np.concatenate([qf, self.w * dx], axis=1)
-            cost += 0.5 * self.w2 * np.einsum("nk,nk->n", dx, dx)
-            grad += self.w2 * dx
-        else:
-            m, z = r, qf
-        u_m, sv, vt = np.linalg.svd(m, full_matrices=False)
-        vec = np.matmul(q0, vt.transpose(0, 2, 1))
-        return cost, grad, r, q0, sv, vec, np.einsum("nkj,nk->nj", u_m, z), finite
+        grad = -(np.einsum("nkt,nt->nk", d, res) + h * res.sum(axis=1)[:, None])
+        g_rot = np.einsum("nki,nk->ni", q0, grad)  # Q₀ᵀ·Jᵀf
+        return cost, grad, _cholesky3(gram), q0, g_rot, finite
 
     def _quadratic(self, idx: np.ndarray, step: np.ndarray) -> np.ndarray:
         """‖J·step‖² (with a ridge, of [J; w·I]) at the current points of windows idx."""
