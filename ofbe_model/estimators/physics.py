@@ -15,6 +15,7 @@ from scipy.optimize import least_squares
 
 from ofbe_model.estimators.base import Estimator, EstimatorError, check_inputs, register
 from ofbe_model.estimators.batched import ls_trf_batch, won2009_batch, won_iterations
+from ofbe_model.estimators.batched_bounds import ls_trf_bounded_batch
 from ofbe_model.estimators.common import (
     LS_VARIANTS,
     MG,
@@ -211,16 +212,18 @@ class LSTRF(Estimator):
 
     def predict(self, windows: np.ndarray, meta: pd.DataFrame) -> np.ndarray:
         """Bias estimates, (N, 3) m/s²: scipy's TRF per window, run for all windows at once
-        where there are no bounds (:func:`~ofbe_model.estimators.batched.ls_trf_batch`, the
-        same iterations; the ``bounded`` variant solves window by window)."""
+        (:func:`~ofbe_model.estimators.batched.ls_trf_batch` without bounds, :func:`~ofbe_model.
+        estimators.batched_bounds.ls_trf_bounded_batch` with them: the same iterations). A
+        window the bounded batch could not follow is solved by scipy itself."""
         check_inputs(windows, meta)
         g = _g_local(meta)
         kw = self._solver_kwargs(np.asarray(windows).shape[1])
         if self.variant != "bounded":
             return ls_trf_batch(windows, g, ridge_weight=kw.get("ridge_weight", 0.0), x0=kw["x0"],
                                 max_nfev=kw["max_nfev"])
-        out = np.empty((len(g), 3))
-        for i in range(len(g)):
+        out, _, ok = ls_trf_bounded_batch(windows, g, kw["lower"], kw["upper"], x0=kw["x0"],
+                                          max_nfev=kw["max_nfev"])
+        for i in np.flatnonzero(~ok):
             out[i] = ls_trf_solve(np.asarray(windows[i], dtype=np.float64), float(g[i]), **kw).b
         return out
 

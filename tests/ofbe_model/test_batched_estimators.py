@@ -1,11 +1,11 @@
 """The window-batched solvers against the per-window ones they replace.
 
 ``won2009`` is checked against ``numpy.linalg.lstsq`` steps (the per-window method as the
-paper writes it) and the unbounded ``ls-trf`` variants against ``scipy.optimize.
-least_squares`` itself, window by window, on tilted noisy windows like the paper's (the
-as-written variant slides metres per second squared along the flat valley, the hardest case
-for agreement); the benchmark runner's one-call prediction of every fold's test windows
-against predicting fold by fold.
+paper writes it) and every ``ls-trf`` variant, bounded too (estimates at the bound, the same
+evaluation counts), against ``scipy.optimize.least_squares`` itself, window by window, on
+tilted noisy windows like the paper's (the as-written variant slides metres per second
+squared along the flat valley, the hardest case for agreement); the benchmark runner's
+one-call prediction of every fold's test windows against predicting fold by fold.
 """
 
 from __future__ import annotations
@@ -19,8 +19,10 @@ import pytest
 
 from ofbe_model.benchmark import runner
 from ofbe_model.benchmark.runner import BenchmarkParams, run_protocol
-from ofbe_model.estimators import batched
+from ofbe_model.estimators import batched, batched_bounds, physics
 from ofbe_model.estimators.batched import ls_trf_batch, won2009_batch
+from ofbe_model.estimators.batched_bounds import ls_trf_bounded_batch
+from ofbe_model.estimators.common import MG
 from ofbe_model.estimators.physics import LSTRF, LevelMean, Won2009, ls_trf_solve, won2009_solve
 
 G = 9.795382950829522
@@ -131,27 +133,88 @@ def test_ls_trf_batch_stops_where_scipy_stops():
     assert trf.nfev.tolist() == [ls_trf_solve(X[i], G, ridge_weight=1e-2 * T).nfev for i in range(3)]
 
 
-def test_lstrf_predict_batches_the_unbounded_variants_only(monkeypatch):
+def test_lstrf_predict_batches_every_variant():
     X = windows(7, 3)
     m = meta(3)
-    for variant in ("as-written", "min-norm"):
+    for variant in ("as-written", "min-norm", "bounded"):
         est = LSTRF(variant=variant)
         want = np.array([est.solve_window(X[i], G).b for i in range(3)])
-        assert np.max(np.abs(est.predict(X, m) - want)) < AGREE
-    calls = []
-    monkeypatch.setattr("ofbe_model.estimators.physics.ls_trf_batch", lambda *a, **k: calls.append(a))
+        assert np.max(np.abs(est.predict(X, m) - want)) < AGREE, variant
+
+
+# ----------------------------------------------------------------------------- ls-trf with bounds
+
+BOX = np.array([150.0, 150.0, 250.0]) * MG  # the ADXL345 datasheet limits, m/s²
+
+
+@pytest.mark.parametrize("seed, lower, upper, kw", [
+    (10, -BOX, BOX, {}),                                          # the bounded variant
+    (10, -BOX, BOX, {"x0": np.array([0.2, -0.1, 0.3])}),
+    (10, -BOX, BOX, {"max_nfev": 5}),                             # stops on the budget
+    (10, np.array([-np.inf, -0.5, -1.0]), np.array([0.3, np.inf, 1.0]), {}),  # one-sided
+    (12, -0.2 * np.ones(3), 0.2 * np.ones(3), {}),                # a tight box: up to 3 active
+])
+def test_ls_trf_bounded_batch_is_scipys_trf_bounds(seed, lower, upper, kw):
+    """Every window walks scipy's reflective path: the same evaluations, the same estimate
+    to rounding, at the bound where scipy's is."""
+    X = windows(seed, 6)
+    got, nfev, ok = ls_trf_bounded_batch(X, np.full(6, G), lower, upper, **kw)
+    ref = [ls_trf_solve(X[i], G, lower=lower, upper=upper, **kw) for i in range(6)]
+    want = np.array([r.b for r in ref])
+    assert ok.all()
+    assert np.max(np.abs(got - want)) < AGREE
+    assert nfev.tolist() == [r.nfev for r in ref]
+    assert np.all((got >= lower) & (got <= upper))
+    if "max_nfev" not in kw:  # windows end on the box: some components at a bound
+        at_bound = (np.abs(want - lower) < 1e-9) | (np.abs(want - upper) < 1e-9)
+        assert at_bound.any(axis=1).sum() >= 4
+        assert np.array_equal(at_bound, (np.abs(got - lower) < 1e-9) | (np.abs(got - upper) < 1e-9))
+
+
+def test_ls_trf_bounded_batch_on_level_windows_and_small_t():
+    X = windows(11, 4, tilt_deg=(0.0, 0.5), t=700).astype(np.float32)
+    got, nfev, ok = ls_trf_bounded_batch(X, np.full(4, G), -BOX, BOX)
+    ref = [ls_trf_solve(np.asarray(X[i], dtype=np.float64), G, lower=-BOX, upper=BOX) for i in range(4)]
+    assert ok.all() and nfev.tolist() == [r.nfev for r in ref]
+    assert np.max(np.abs(got - np.array([r.b for r in ref]))) < AGREE
+
+
+def test_lstrf_bounded_falls_back_to_scipy_for_a_window_it_cannot_follow(monkeypatch):
+    """A window marked by the batch (scipy's intersect_trust_region would raise) is solved
+    by scipy itself; the others keep the batch's estimates."""
+    X = windows(13, 4)
+    real = batched_bounds._TRFBounds._select
+
+    def select(self, idx, p_h):
+        out = real(self, idx, p_h)
+        self.ok[idx[idx == 2]] = False
+        return out
+
+    monkeypatch.setattr(batched_bounds._TRFBounds, "_select", select)
+    solved: list[int] = []
+    real_solve = physics.ls_trf_solve
+
+    def counting(f, g, **kw):
+        solved.append(len(f))
+        return real_solve(f, g, **kw)
+
+    monkeypatch.setattr(physics, "ls_trf_solve", counting)
     est = LSTRF(variant="bounded")
-    got = est.predict(X, m)
-    assert calls == []  # scipy's reflective solve, window by window: the same bits
-    assert np.array_equal(got, np.array([est.solve_window(X[i], G).b for i in range(3)]))
+    got = est.predict(X, meta(4))
+    assert solved == [T]  # window 2 alone, per window
+    want = np.array([real_solve(X[i], G, lower=-BOX, upper=BOX).b for i in range(4)])
+    assert np.array_equal(got[2], want[2])
+    assert np.max(np.abs(got - want)) < AGREE
 
 
 def test_batches_split_anywhere(monkeypatch):
     X = windows(8, 5)
     g = np.full(5, G)
     whole = ls_trf_batch(X, g, ridge_weight=30.0)
+    bounded = ls_trf_bounded_batch(X, g, -BOX, BOX)[0]
     monkeypatch.setattr(batched, "BATCH_WINDOWS", 2)
     assert np.max(np.abs(ls_trf_batch(X, g, ridge_weight=30.0) - whole)) < 1e-13
+    assert np.max(np.abs(ls_trf_bounded_batch(X, g, -BOX, BOX)[0] - bounded)) < 1e-13
 
 
 # ----------------------------------------------------------------------------- the runner
