@@ -342,19 +342,25 @@ class _TRF:
         f = self.f if k == self.f.shape[0] else self.f[idx]
         d, norm, res = self._buf_d[:k], self._buf_norm[:k], self._buf_res[:k]
         np.subtract(f, x[:, :, None], out=d)
-        np.einsum("nkt,nkt->nt", d, d, out=norm)
+        np.multiply(d[:, 0], d[:, 0], out=norm)  # (x² + y²) + z², as scipy's residuals sum them
+        np.multiply(d[:, 1], d[:, 1], out=res)
+        norm += res
+        np.multiply(d[:, 2], d[:, 2], out=res)
+        norm += res
         np.sqrt(norm, out=norm)
         np.subtract(norm, self.g[idx][:, None], out=res)
         finite = np.isfinite(res).all(axis=1)
         cost = 0.5 * np.einsum("nt,nt->n", res, res)
         d /= norm[:, None, :]  # u_i (J's rows are −u_i)
         d -= h[:, :, None]  # v_i
-        vv = np.matmul(d, d.transpose(0, 2, 1))
+        vv = np.empty((k, 3, 3))
+        for i, j in ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)):
+            vv[:, i, j] = vv[:, j, i] = np.einsum("nt,nt->n", d[:, i], d[:, j])
         sv1 = d.sum(axis=2)
         gram = vv + h[:, :, None] * sv1[:, None, :] + sv1[:, :, None] * h[:, None, :]
         gram = np.einsum("nki,nkl,nlj->nij", q0, gram, q0)
         gram[:, 0, 0] += t
-        grad = -(np.einsum("nkt,nt->nk", d, res) + h * res.sum(axis=1)[:, None])
+        grad = -(np.matmul(d, res[:, :, None])[:, :, 0] + h * res.sum(axis=1)[:, None])
         g_rot = np.einsum("nki,nk->ni", q0, grad)  # Q₀ᵀ·Jᵀf
         return cost, grad, _cholesky3(gram), q0, g_rot, finite
 
