@@ -18,7 +18,8 @@ Usage: python benchmarks/scale.py [--devices N] [--sessions M] [--raw DIR] [--jo
    read the raw files again, window, split, write HDF5 and Parquet), best of ``--repeat``
    wall-clock runs of each. Prints recordings/s, MB/s and the cost of one recording in
    core-seconds (wall × workers / recordings), and the speed-up from 1 to 2 workers. It also
-   checks that every run wrote the same bytes (SHA-256 of every label and dataset file).
+   checks that every run wrote the same bytes (SHA-256 of every label and dataset file) and
+   prints what each step writes per recording.
 3. Overhead per task: ``map_progress`` of a no-op (the builtin ``abs``) over one item per
    worker and over ``--tasks`` more, with each scheduler and worker count; the difference
    divided by the extra items is the wall-clock cost of one task with that many workers at
@@ -66,11 +67,17 @@ class Run:
     recordings: int
     megabytes: float
     digest: str
+    out_megabytes: float
 
     @property
     def per_recording_core_s(self) -> float:
         """Core-seconds per recording: wall × workers / recordings."""
         return self.seconds * self.jobs / self.recordings
+
+
+def tree_megabytes(folder: Path) -> float:
+    """Megabytes of every file under ``folder``."""
+    return sum(p.stat().st_size for p in folder.rglob("*") if p.is_file()) / 1e6
 
 
 def tree_digest(folder: Path) -> str:
@@ -125,8 +132,10 @@ def time_steps(raw: Path, scratch: Path, scheduler: str, jobs: int, repeat: int,
 
     build_s = best_of(repeat, build)
     n_files, megabytes = raw_size(raw)
-    return [Run("label", name, jobs, label_s, n_files, megabytes, tree_digest(labels_root)),
-            Run("build", name, jobs, build_s, int(built[0].n_recordings), megabytes, tree_digest(dataset))]
+    return [Run("label", name, jobs, label_s, n_files, megabytes, tree_digest(labels_root),
+                tree_megabytes(labels_root)),
+            Run("build", name, jobs, build_s, int(built[0].n_recordings), megabytes, tree_digest(dataset),
+                tree_megabytes(dataset))]
 
 
 @contextlib.contextmanager
@@ -173,9 +182,11 @@ def report(runs: Sequence[Run], overhead: dict[tuple[str, int], dict[str, float]
               f"{r.megabytes / r.seconds:7.1f} {r.per_recording_core_s * 1e3:12.2f} "
               f"{base.seconds / r.seconds:8.2f}x")
     for step in ("label", "build"):
-        digests = {r.digest for r in runs if r.step == step}
-        print(f"{step}: outputs identical across the {sum(r.step == step for r in runs)} runs: "
-              f"{'yes' if len(digests) == 1 else 'NO'}")
+        mine = [r for r in runs if r.step == step]
+        print(f"{step}: outputs identical across the {len(mine)} runs: "
+              f"{'yes' if len({r.digest for r in mine}) == 1 else 'NO'}; "
+              f"{mine[0].out_megabytes:.2f} MB written, "
+              f"{mine[0].out_megabytes * 1e3 / mine[0].recordings:.1f} kB per recording")
     for (scheduler, n), o in overhead.items():
         print(f"overhead {scheduler}, {n} worker(s): start-up {o['start_s']:.2f} s, "
               f"{o['per_task_s'] * 1e3:.2f} ms per task")
