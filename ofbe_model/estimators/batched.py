@@ -39,8 +39,10 @@ _FTOL = _XTOL = _GTOL = 1e-8  # scipy.optimize.least_squares' defaults
 _TR_RTOL, _TR_MAX_ITER = 0.01, 10  # scipy's solve_lsq_trust_region defaults
 
 
-def _batches(n: int) -> list[slice]:
-    return [slice(i, min(i + BATCH_WINDOWS, n)) for i in range(0, n, BATCH_WINDOWS)]
+def _batches(n: int, size: int | None = None) -> list[slice]:
+    """Slices of at most ``size`` (None: BATCH_WINDOWS) of n windows."""
+    step = BATCH_WINDOWS if size is None else size
+    return [slice(i, min(i + step, n)) for i in range(0, n, step)]
 
 
 def _component_major(windows: np.ndarray, rows: slice) -> np.ndarray:

@@ -213,6 +213,7 @@ def test_batches_split_anywhere(monkeypatch):
     whole = ls_trf_batch(X, g, ridge_weight=30.0)
     bounded = ls_trf_bounded_batch(X, g, -BOX, BOX)[0]
     monkeypatch.setattr(batched, "BATCH_WINDOWS", 2)
+    monkeypatch.setattr(batched_bounds, "BATCH_WINDOWS", 3)
     assert np.max(np.abs(ls_trf_batch(X, g, ridge_weight=30.0) - whole)) < 1e-13
     assert np.max(np.abs(ls_trf_bounded_batch(X, g, -BOX, BOX)[0] - bounded)) < 1e-13
 
