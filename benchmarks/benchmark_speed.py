@@ -13,8 +13,9 @@ Usage: python benchmarks/benchmark_speed.py [--datasets DIR ...] [--methods M ..
 2. ``--reference N``: the first N test signals (window 0 of each recording) of every
    dataset solved window by window with the reference solvers, ``numpy.linalg.lstsq`` steps
    for ``won2009`` (the method as the paper writes it) and ``scipy.optimize.least_squares``
-   for every ``ls-trf`` variant, and with the batched estimators the runner uses: the time
-   of each, and the largest difference of any estimate component, m/s².
+   for every ``ls-trf`` variant (``bounded`` with its box: scipy's ``trf_bounds``), and with
+   the batched estimators the runner uses: the time of each, and the largest difference of
+   any estimate component, m/s².
 
 Nothing is asserted: this is a measurement.
 """
