@@ -10,7 +10,7 @@ from pathlib import Path
 
 from ofbe_data.core.errors import OfbeError
 from ofbe_data.core.parallel import TaskFailure, map_progress
-from ofbe_data.io.manifest import MANIFEST_NAME, load_manifest
+from ofbe_data.io.manifest import MANIFEST_NAME, SessionManifest, load_manifest
 from ofbe_data.labelling.labels import (
     LabelParams,
     SessionLabels,
@@ -89,23 +89,32 @@ def check_output_folder(out_dir: Path) -> None:
                          f"{exc.strerror or exc} (choose another --out or fix its permissions)") from None
 
 
-def _session_id(folder: Path) -> tuple[str, str] | None:
-    """(campaign, session) of a session folder's manifest, or None when it cannot be read."""
+def _manifest(folder: Path) -> SessionManifest | None:
+    """A session folder's manifest, or None when it cannot be read (labelling the session then
+    reads it again and fails with the reason)."""
     try:
-        m = load_manifest(folder)
+        return load_manifest(folder)
     except (OfbeError, OSError):
         return None
-    return m.campaign, m.session
 
 
-def _duplicates(folders: Sequence[Path]) -> dict[Path, str]:
-    """Folders whose (campaign, session) id another folder of the batch also has → the error."""
+def _session_id(folder: Path) -> tuple[str, str] | None:
+    """(campaign, session) of a session folder's manifest, or None when it cannot be read."""
+    m = _manifest(folder)
+    return None if m is None else (m.campaign, m.session)
+
+
+def _duplicates(folders: Sequence[Path], manifests: dict[Path, SessionManifest | None]) -> dict[Path, str]:
+    """Folders whose (campaign, session) id another folder of the batch also has → the error.
+
+    ``manifests`` holds each folder's manifest (None where it cannot be read)."""
     first: dict[tuple[str, str], Path] = {}
     errors: dict[Path, str] = {}
     for f in folders:
-        sid = _session_id(f)
-        if sid is None:
+        m = manifests[f]
+        if m is None:
             continue
+        sid = (m.campaign, m.session)
         if sid in first:
             msg = (f"session {sid[0]}/{sid[1]} is in two folders of this batch, {first[sid]} and {f}: "
                    "expected one folder per session id (rename one session in its session.yaml)")
@@ -129,10 +138,10 @@ def _remove_stale(folder: Path, out_dir: Path) -> list[Path]:
     return removed
 
 
-def _run_one(args: tuple[Path, LabelParams]) -> Outcome:
-    folder, params = args
+def _run_one(args: tuple[Path, LabelParams, SessionManifest | None]) -> Outcome:
+    folder, params, manifest = args
     try:
-        return Outcome(folder, label_session(folder, params))
+        return Outcome(folder, label_session(folder, params, manifest=manifest))
     except OfbeError as exc:
         return Outcome(folder, error=str(exc))
     except OSError as exc:  # unreadable input the readers did not classify
@@ -176,9 +185,10 @@ def label_sessions(folders: Sequence[Path], params: LabelParams, out_dir: Path, 
         Writing the products failed (a full disk): every file is written atomically, so
         what was written is whole, and the caller reports the error.
     """
-    dup = _duplicates(folders)
+    manifests = {f: _manifest(f) for f in folders}  # read once: the duplicate check and labelling
+    dup = _duplicates(folders, manifests)
     todo = [f for f in folders if f not in dup]
-    results = map_progress(_run_one, [(f, params) for f in todo], jobs=jobs, desc="labelling", unit="session",
+    results = map_progress(_run_one, [(f, params, manifests[f]) for f in todo], jobs=jobs, desc="labelling", unit="session",
                            progress=progress, scheduler=scheduler, on_error="collect")
     done = {f: (Outcome(f, error=f"{f}: {r.reason}") if isinstance(r, TaskFailure) else r)
             for f, r in zip(todo, results, strict=True)}

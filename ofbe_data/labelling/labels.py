@@ -34,6 +34,7 @@ import numpy as np
 from ofbe_data import __version__
 from ofbe_data.core.errors import ConfigError
 from ofbe_data.io.formats import read_device_file
+from ofbe_data.io.formats.filebytes import file_digests
 from ofbe_data.io.manifest import DeviceSpec, SessionManifest, load_manifest
 from ofbe_data.io.recording import TEMPERATURE, Recording
 from ofbe_data.io.typedconfig import from_plain, read_section
@@ -493,7 +494,7 @@ def _label_level(out: SessionLabels, row: dict[str, Any], params: LabelParams) -
 
 
 def label_session(folder: str | Path, params: LabelParams = LabelParams(), *,
-                  keep_segments: bool = False) -> SessionLabels:
+                  keep_segments: bool = False, manifest: SessionManifest | None = None) -> SessionLabels:
     """Label every (recording, DUT) of one session folder.
 
     Parameters
@@ -506,6 +507,8 @@ def label_session(folder: str | Path, params: LabelParams = LabelParams(), *,
         Also keep each row's stationary samples, (n, 3) m/s², under the private key
         ``"_segment"`` (for analyses such as the convergence report; the label writer
         ignores it).
+    manifest
+        The session's manifest when already loaded from ``folder`` (else it is read here).
 
     Returns
     -------
@@ -520,7 +523,7 @@ def label_session(folder: str | Path, params: LabelParams = LabelParams(), *,
     RawFormatError
         A file cannot be read (missing, empty, no data line, wrong header…).
     """
-    m = load_manifest(folder)
+    m = load_manifest(folder) if manifest is None else manifest
     out = SessionLabels(m)
     out.files["session.yaml"] = sha256_file(m.path)
     read_all = []
@@ -529,8 +532,9 @@ def label_session(folder: str | Path, params: LabelParams = LabelParams(), *,
         rels: dict[str, str] = {}
         for dev_id, rel in rec_spec.files.items():
             path = m.file_path(rec_spec, dev_id)
-            recs[dev_id] = read_device_file(path, m.devices[dev_id])
-            out.files[rel] = sha256_file(path)
+            with file_digests() as digests:  # hashed from the bytes the reader parsed
+                recs[dev_id] = read_device_file(path, m.devices[dev_id])
+            out.files[rel] = digests.get(Path(path)) or sha256_file(path)
             rels[dev_id] = rel
             _rate_warnings(out, rec_spec.id, dev_id, recs[dev_id])
         if m.kind == "rotated":

@@ -23,8 +23,8 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.csv as pacsv
 
-from ofbe_data.core.atomic import file_kind
 from ofbe_data.core.errors import RawFormatError
+from ofbe_data.io.formats.filebytes import read_file_bytes
 from ofbe_data.io.recording import (
     SKIP_EMPTY,
     SKIP_FIELD_COUNT,
@@ -531,18 +531,7 @@ def format_utc(stamp: datetime) -> str:
     return stamp.strftime("%Y-%m-%dT%H:%M:%S.") + f"{stamp.microsecond // 1000:03d}Z"
 
 
-def _read_bytes(path: Path) -> bytes:
-    kind = file_kind(path)
-    if kind is not None:
-        raise RawFormatError(path, "a readable data file", kind)
-    try:
-        return path.read_bytes()
-    except FileNotFoundError:
-        raise RawFormatError(path, "a readable data file", "no such file") from None
-    except OSError as exc:
-        raise RawFormatError(path, "a readable data file", exc.strerror or str(exc)) from None
-
-
+_read_bytes = read_file_bytes
 
 
 def _csv_body(columns: Sequence[pa.Array], delimiter: str = ",") -> bytes:
