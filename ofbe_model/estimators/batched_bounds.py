@@ -300,6 +300,7 @@ class _TRFBounds(_TRF):
         return step, step_h, -value
 
     def run(self) -> np.ndarray:
+        """Every window to scipy's stop (or to a mark in ``ok``); the (n, 3) estimates, m/s²."""
         n = self.x.shape[0]
         done = np.zeros(n, dtype=bool)
         top = np.ones(n, dtype=bool)
