@@ -178,7 +178,7 @@ BREAKDOWN_STEPS: tuple[tuple[str, str, str], ...] = (
     ("  convergence_index", "ofbe_data.labelling.convergence", "convergence_index"),
     ("  rate_step (checks)", "ofbe_data.labelling.checks", "rate_step"),
     ("  clipped_samples (checks)", "ofbe_data.labelling.checks", "clipped_samples"),
-    ("  _typical_reading (median norm, labels.py)", "ofbe_data.labelling.labels", "_typical_reading"),
+    ("  typical_norm_problem (median norm, checks)", "ofbe_data.labelling.checks", "typical_norm_problem"),
     ("write_session (Parquet + JSON)", "ofbe_data.labelling.store", "write_session"),
     ("fit_campaign", "ofbe_data.labelling.store", "fit_campaign"),
 )

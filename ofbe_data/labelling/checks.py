@@ -23,6 +23,7 @@ import numpy as np
 
 from ofbe_data.core.geometry import dot3, mul3, norm3, unit
 from ofbe_data.io.gravity import G0
+from ofbe_data.labelling.stationarity import row_sum
 
 MAX_NORM_DEVIATION = 0.3
 """methods.md §9: a stationary mean more than 30 % away from g_local is implausible."""
@@ -104,6 +105,47 @@ def norm_problem(mean: np.ndarray, g: float, max_deviation: float = MAX_NORM_DEV
         return None
     return (f"‖mean‖ = {norm:.4g} m/s² is {ratio:.3g} × g_local ({g:.4f} m/s²), more than "
             f"{max_deviation:.0%} away: likely {likely_mistake(ratio)}")
+
+
+def typical_reading(acc: np.ndarray) -> np.ndarray:
+    """A reading whose norm is the recording's median norm (robust to taps and motion)."""
+    norms = np.sqrt(np.sum(acc * acc, axis=1))
+    return np.array([float(np.median(norms)), 0.0, 0.0]) if norms.size else np.zeros(3)
+
+
+def typical_norm_problem(acc: np.ndarray, g: float, max_deviation: float = MAX_NORM_DEVIATION,
+                         ) -> str | None:
+    """``norm_problem(typical_reading(acc), g, max_deviation)``, mostly without the median.
+
+    The accepted norms are one interval (the test is monotone in the norm): when both ends
+    of a slightly narrower interval pass and at most (n − 1) // 2 readings lie below it and
+    at most as many above it, both middle elements of the sorted norms, and so the median,
+    lie inside. That takes a few counts over the squared norms (bounds chosen so that the
+    rounded square root keeps the side), where the median takes a partition. Anything else
+    (NaN, a band too narrow to call) computes the median.
+    """
+    acc = np.asarray(acc, dtype=np.float64)
+    if acc.ndim == 2 and acc.shape[0] and _median_norm_accepted(acc, g, max_deviation):
+        return None
+    return norm_problem(typical_reading(acc), g, max_deviation)
+
+
+def _median_norm_accepted(acc: np.ndarray, g: float, max_deviation: float) -> bool:
+    """True when the median row norm of ``acc`` certainly passes :func:`norm_problem`."""
+    lo, hi = g * (1.0 - max_deviation) * (1.0 + 1e-9), g * (1.0 + max_deviation) * (1.0 - 1e-9)
+    if not (0.0 <= lo <= hi) or any(norm_problem(np.array([b, 0.0, 0.0]), g, max_deviation) is not None
+                                    for b in (lo, hi)):
+        return False
+    lo2, hi2 = lo * lo, hi * hi  # sqrt(s) >= lo whenever s >= lo2; sqrt(s) <= hi whenever s <= hi2
+    while math.sqrt(lo2) < lo:
+        lo2 = math.nextafter(lo2, math.inf)
+    while math.sqrt(hi2) > hi:
+        hi2 = math.nextafter(hi2, -math.inf)
+    s = row_sum(acc * acc)  # the squared norms with the bits np.sum(axis=1) gives them
+    if math.isnan(float(s.max())):
+        return False
+    half = (s.shape[0] - 1) // 2
+    return int(np.count_nonzero(s < lo2)) <= half and int(np.count_nonzero(s > hi2)) <= half
 
 
 def level_tilt_deg(mean: np.ndarray, axis: np.ndarray) -> float:

@@ -53,11 +53,12 @@ from ofbe_data.labelling.checks import (
     norm_problem,
     rate_problem,
     rate_step,
+    typical_norm_problem,
 )
 from ofbe_data.labelling.convergence import PAPER_THRESHOLD, PAPER_WINDOW, convergence_index
 from ofbe_data.labelling.orientation import apparent_bias, nearest_axis, rodrigues_label, roll_pitch
 from ofbe_data.labelling.poses import PoseParams
-from ofbe_data.labelling.stationarity import StaticParams, check_static, longest_run
+from ofbe_data.labelling.stationarity import StaticParams, check_static, column_mean, is_still, longest_run
 from ofbe_data.labelling.sync import SyncError, SyncParams, synchronise, tap_signals
 
 LABELS_FORMAT = "ofbe-labels/1"
@@ -266,20 +267,28 @@ def _file_problem(rec: Recording, params: LabelParams, g: float) -> tuple[str, s
     rate = rate_problem(rec.fs_hz, rec.nominal_rate_hz)
     if rate is not None and rate[1]:
         return IMPLAUSIBLE_RATE, rate[0]
-    norm = norm_problem(_typical_reading(rec.acc), g, params.max_norm_deviation)
+    norm = typical_norm_problem(rec.acc, g, params.max_norm_deviation)
     if norm is not None:
         return IMPLAUSIBLE_NORM, norm
     return None
 
 
+def _segment_mean(rec: Recording, seg: _Segment) -> np.ndarray | None:
+    """``acc.mean(axis=0)`` over the segment (None when it is empty), computed once for the
+    static check, the plausibility of the mean and the row."""
+    return column_mean(rec.acc[seg.start:seg.stop]) if seg.stop > seg.start else None
+
+
 def _quality(rec: Recording, seg: _Segment, params: LabelParams, g: float, min_samples: int | None = None,
-             ) -> tuple[str, str] | None:
+             mean: np.ndarray | None = None) -> tuple[str, str] | None:
     """First problem that forbids a label on this segment, as (reason, detail).
 
     ``g`` is the local gravity (for the plausibility of the mean); ``min_samples`` defaults
     to ``params.min_samples`` (the DUT's rule; a reference only needs enough samples for a
-    mean)."""
+    mean); ``mean`` is :func:`_segment_mean` when the caller has it."""
     need = params.min_samples if min_samples is None else min_samples
+    if mean is None:
+        mean = _segment_mean(rec, seg)
     bad = _file_problem(rec, params, g)
     if bad is not None:
         return bad
@@ -290,8 +299,9 @@ def _quality(rec: Recording, seg: _Segment, params: LabelParams, g: float, min_s
         first = int(rec.line[seg.start + int(np.argmax(rec.saturated[seg.start:seg.stop]))])
         return SATURATED, f"{sat} saturated samples in the stationary segment (first at line {first})"
     n = seg.stop - seg.start
-    if n >= 2 and not seg.static_checked:
-        check = check_static(rec.acc[seg.start:seg.stop], rec.fs_hz, params.static)
+    if n >= 2 and not seg.static_checked and not is_still(rec.acc[seg.start:seg.stop], rec.fs_hz,
+                                                           params.static, mean):
+        check = check_static(rec.acc[seg.start:seg.stop], rec.fs_hz, params.static, mean)
         if check.moving_samples:
             first = int(rec.line[seg.start + int(np.argmin(check.static))])
             return MOTION, (f"{check.moving_samples} of {n} samples in the stationary segment are "
@@ -307,16 +317,10 @@ def _quality(rec: Recording, seg: _Segment, params: LabelParams, g: float, min_s
         return SATURATED, (f"{count} of {n} samples of the stationary segment sit at the same extreme "
                            f"{'xyz'[k]} value {value:.5g} m/s², more than the value next to it: clipping at "
                            "the logger's range? (state range_g, or record with a wider range)")
-    norm = norm_problem(x.mean(axis=0), g, params.max_norm_deviation)
+    norm = norm_problem(mean, g, params.max_norm_deviation)
     if norm is not None:
         return IMPLAUSIBLE_NORM, norm
     return None
-
-
-def _typical_reading(acc: np.ndarray) -> np.ndarray:
-    """A reading whose norm is the recording's median norm (robust to taps and motion)."""
-    norms = np.sqrt(np.sum(acc * acc, axis=1))
-    return np.array([float(np.median(norms)), 0.0, 0.0]) if norms.size else np.zeros(3)
 
 
 def _rate_warnings(out: SessionLabels, rec_id: str, dev_id: str, rec: Recording) -> None:
@@ -351,7 +355,7 @@ def _temperature(rec: Recording, seg: _Segment) -> float | None:
 
 def _base_row(m: SessionManifest, rec_id: str, dev: DeviceSpec, rec: Recording, seg: _Segment,
               files: dict[str, str], rel: str, params: LabelParams, keep_segment: bool = False,
-              ) -> dict[str, Any]:
+              mean: np.ndarray | None = None) -> dict[str, Any]:
     x = rec.acc[seg.start:seg.stop]
     conv = [convergence_index(x[:, i], params.convergence_window, params.convergence_threshold)
             for i in range(3)]
@@ -368,7 +372,7 @@ def _base_row(m: SessionManifest, rec_id: str, dev: DeviceSpec, rec: Recording, 
         "missing_samples": rec.diagnostics.missing_samples,
         "offset_x": None, "offset_y": None, "offset_z": None, "fit_condition": None,
         "pose": 0, "temperature_c": _temperature(rec, seg),
-        "_mean": x.mean(axis=0),
+        "_mean": column_mean(x) if mean is None else mean,
         **({"_segment": x} if keep_segment else {}),
     }
 
@@ -406,7 +410,8 @@ def _label_rotated(out: SessionLabels, rec_id: str, recs: dict[str, Recording],
     # the reference's signals, window and checks do not depend on the DUT: once per recording
     ref_sig = tap_signals(ref, params.sync)
     s0, s1, ref_seg = _reference_window(ref, ref_sig.taps, params)
-    ref_bad = _quality(ref, ref_seg, params, m.g_local, min_samples=2)
+    ref_mean = _segment_mean(ref, ref_seg)
+    ref_bad = _quality(ref, ref_seg, params, m.g_local, min_samples=2, mean=ref_mean)
     for dev in m.duts:
         rec = recs[dev.id]
         try:
@@ -424,12 +429,12 @@ def _label_rotated(out: SessionLabels, rec_id: str, recs: dict[str, Recording],
         a = int(np.searchsorted(t_ref, s0, side="left"))
         b = int(np.searchsorted(t_ref, s1, side="right"))
         seg = _Segment(a, max(a, b))
-        bad = _quality(rec, seg, params, m.g_local)
+        mean = _segment_mean(rec, seg)
+        bad = _quality(rec, seg, params, m.g_local, mean=mean)
         if bad is not None:
             out.rejections.append(Rejection(rec_id, dev.id, *bad))
             continue
-        row = _base_row(m, rec_id, dev, rec, seg, out.files, rels[dev.id], params, keep_segments)
-        ref_mean = ref.acc[ref_seg.start:ref_seg.stop].mean(axis=0)
+        row = _base_row(m, rec_id, dev, rec, seg, out.files, rels[dev.id], params, keep_segments, mean)
         N = np.eye(3) if dev.reference_to_sensor is None else dev.reference_to_sensor
         error = mount_error_deg(row["_mean"], ref_mean, N)
         if error > params.max_mount_error_deg:
@@ -455,7 +460,8 @@ def _label_alone(out: SessionLabels, rec_id: str, recs: dict[str, Recording],
     for dev in m.duts:
         rec = recs[dev.id]
         seg, tapped = _own_segment(rec, tap_signals(rec, params.sync).taps, params)
-        bad = _quality(rec, seg, params, m.g_local)
+        mean = _segment_mean(rec, seg)
+        bad = _quality(rec, seg, params, m.g_local, mean=mean)
         if bad is not None:
             out.rejections.append(Rejection(rec_id, dev.id, *bad))
             continue
@@ -463,7 +469,7 @@ def _label_alone(out: SessionLabels, rec_id: str, recs: dict[str, Recording],
             out.warnings.append(f"{rec_id}/{dev.id}: no taps; stationary part found by the static "
                                 f"detector at lines {int(rec.line[seg.start])}–"
                                 f"{int(rec.line[seg.stop - 1])}")
-        rows.append(_base_row(m, rec_id, dev, rec, seg, out.files, rels[dev.id], params, keep_segments))
+        rows.append(_base_row(m, rec_id, dev, rec, seg, out.files, rels[dev.id], params, keep_segments, mean))
     return rows
 
 

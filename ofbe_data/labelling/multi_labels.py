@@ -28,6 +28,7 @@ from ofbe_data.labelling.labels import (
     _finish_row,
     _quality,
     _Segment,
+    _segment_mean,
 )
 from ofbe_data.labelling.multiposition import PoseFit, fit_poses, min_poses
 from ofbe_data.labelling.pose_search import direction_groups, distinct_directions, find_session_poses
@@ -86,12 +87,13 @@ def _device_rows(out: SessionLabels, dev: DeviceSpec, recordings: RecordingSet, 
             continue
         for p in poses:
             seg = _Segment(p.start, p.stop, static_checked=True)
-            bad = _quality(rec, seg, params, m.g_local, min_samples=2)
+            mean = _segment_mean(rec, seg)
+            bad = _quality(rec, seg, params, m.g_local, min_samples=2, mean=mean)
             if bad is not None:
                 out.rejections.append(Rejection(rec_id, dev.id, bad[0], f"pose {p.index} "
                                                 f"({p.start_s:.3f}–{p.end_s:.3f} s): {bad[1]}"))
                 continue
-            row = _base_row(m, rec_id, dev, rec, seg, out.files, rel, params, keep_segments)
+            row = _base_row(m, rec_id, dev, rec, seg, out.files, rel, params, keep_segments, mean)
             row["pose"] = p.index
             rows.append(row)
     if len(rows) > 1 or len(usable) > 1:

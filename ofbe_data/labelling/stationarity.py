@@ -9,6 +9,7 @@ of it to move the median), and an absolute ceiling catches a segment that moves 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -75,7 +76,7 @@ def row_sum(x: np.ndarray) -> np.ndarray:
     return out
 
 
-def moving_variance_norm(acc: np.ndarray, window: int) -> np.ndarray:
+def moving_variance_norm(acc: np.ndarray, window: int, mean: np.ndarray | None = None) -> np.ndarray:
     """Sum over axes of the variance of ``acc`` in a sliding window.
 
     Parameters
@@ -84,6 +85,8 @@ def moving_variance_norm(acc: np.ndarray, window: int) -> np.ndarray:
         (N, 3) specific force, m/s².
     window
         Window length, samples (≥ 2, ≤ N).
+    mean
+        ``acc.mean(axis=0)`` when the caller has it (:func:`column_mean`), else computed here.
 
     Returns
     -------
@@ -96,7 +99,8 @@ def moving_variance_norm(acc: np.ndarray, window: int) -> np.ndarray:
     # operations, and so the bits, are those of the textbook expressions in the comments)
     c1 = np.empty((n + 1, k))
     c1[0] = 0.0
-    x = x - column_mean(x, c1[1:] if k == 3 else None)  # keeps the cumulative sums well conditioned
+    # centred: keeps the cumulative sums well conditioned
+    x = x - (column_mean(x, c1[1:] if k == 3 else None) if mean is None else mean)
     np.cumsum(x, axis=0, out=c1[1:])
     c2 = np.empty((n + 1, k))
     c2[0] = 0.0
@@ -140,7 +144,13 @@ class StaticCheck:
         return int((~self.static).sum())
 
 
-def check_static(acc: np.ndarray, fs_hz: float, params: StaticParams = StaticParams()) -> StaticCheck:
+def _window(n: int, fs_hz: float, params: StaticParams) -> int:
+    """The detector's window length, samples."""
+    return int(np.clip(round(params.window_s * fs_hz), 2, max(n, 2)))
+
+
+def check_static(acc: np.ndarray, fs_hz: float, params: StaticParams = StaticParams(),
+                 mean: np.ndarray | None = None) -> StaticCheck:
     """Mark the samples of a segment that lie in no moving window.
 
     Parameters
@@ -151,16 +161,22 @@ def check_static(acc: np.ndarray, fs_hz: float, params: StaticParams = StaticPar
         Sample rate, Hz (sets the window length in samples).
     params
         Detector parameters.
+    mean
+        ``acc.mean(axis=0)`` when the caller has it (saves a pass).
 
     Returns
     -------
     StaticCheck
     """
     n = int(acc.shape[0])
-    window = int(np.clip(round(params.window_s * fs_hz), 2, max(n, 2)))
+    window = _window(n, fs_hz, params)
     if n < window:
         return StaticCheck(np.zeros(n, dtype=bool), float("nan"), float("nan"), float("nan"))
-    v = moving_variance_norm(acc, window)
+    return _static_check(moving_variance_norm(acc, window, mean), n, window, params)
+
+
+def _static_check(v: np.ndarray, n: int, window: int, params: StaticParams) -> StaticCheck:
+    """:func:`check_static` from the moving variance norm ``v`` of its ``n`` samples."""
     floor = float(np.median(v))
     threshold = min(params.variance_factor * floor, params.max_std_mps2**2)
     moving = v > threshold
@@ -172,6 +188,44 @@ def check_static(acc: np.ndarray, fs_hz: float, params: StaticParams = StaticPar
     hi = np.clip(np.arange(n) + 1, 0, v.shape[0])
     static = (cover[hi] - cover[lo]) == 0
     return StaticCheck(static, floor, float(threshold), float(v.max()))
+
+
+def is_still(acc: np.ndarray, fs_hz: float, params: StaticParams = StaticParams(),
+             mean: np.ndarray | None = None) -> bool:
+    """``check_static(acc, fs_hz, params).moving_samples == 0``, mostly without its median.
+
+    Nothing moves when the largest variance norm is within both the ceiling and
+    ``variance_factor`` times the median. The median is at least a bound when fewer than
+    half the values lie below it: one count instead of a partition. Otherwise (motion, or a
+    peak too close to call) the detector itself decides.
+    """
+    n = int(acc.shape[0])
+    window = _window(n, fs_hz, params)
+    if n < window:
+        return n == 0
+    v = moving_variance_norm(acc, window, mean)
+    if _peak_below_threshold(v, params):
+        return True
+    return _static_check(v, n, window, params).moving_samples == 0
+
+
+def _peak_below_threshold(v: np.ndarray, params: StaticParams) -> bool:
+    """True when no element of ``v`` can exceed :func:`check_static`'s threshold
+    ``min(variance_factor · median(v), max_std_mps2²)``, shown by counting.
+
+    With ``factor · bound ≥ peak`` in floating point and both middle elements of the sorted
+    ``v`` at least ``bound`` (at most (n − 1) // 2 elements below it), the median, their mean,
+    is at least ``bound`` and the threshold at least the peak: rounding is monotone. A NaN
+    makes the peak NaN, and the test False.
+    """
+    factor = float(params.variance_factor)
+    peak = float(v.max())
+    if not (factor > 0 and peak <= params.max_std_mps2**2 and math.isfinite(peak)):
+        return False
+    bound = peak / factor
+    while factor * bound < peak:
+        bound = math.nextafter(bound, math.inf)
+    return int(np.count_nonzero(v < bound)) <= (v.shape[0] - 1) // 2
 
 
 def longest_run(mask: np.ndarray) -> tuple[int, int]:
