@@ -145,35 +145,60 @@ def _card_markdown(card: Mapping[str, Any]) -> str:
 
 def train_final(dataset: str | Path, out: str | Path, params: OFBENetParams,
                 benchmark_reports: Sequence[str | Path] = (), progress: bool = True) -> Path:
-    """Fit the deployable OFBENet and gravity-prior of one dataset and write their card.
+    """Fit the deployable OFBENet and gravity-prior of one dataset and write their card:
+    :func:`train_finals` of one dataset."""
+    return train_finals([dataset], out, params, benchmark_reports, progress=progress)[0]
+
+
+def train_finals(datasets: Sequence[str | Path], out: str | Path, params: OFBENetParams,
+                 benchmark_reports: Sequence[str | Path] = (), progress: bool = True, jobs: int = 1,
+                 scheduler: str = "processes") -> list[Path]:
+    """Fit the deployable OFBENet and gravity-prior of each dataset and write their cards.
 
     Parameters
     ----------
-    dataset
-        Dataset folder (``processed/datasets/<name>``).
+    datasets
+        Dataset folders (``processed/datasets/<name>``).
     out
-        Models folder; the files go to ``<out>/<name>/``.
+        Models folder; each dataset's files go to ``<out>/<name>/``.
     params
         OFBENet parameters (``params.seed`` is the seed).
     benchmark_reports
         ``benchmark.json`` files whose RMSE of ``ofbenet`` and ``gravity-prior-direction`` on
-        this dataset go into the card.
+        each dataset go into its card.
     progress
-        A progress line while OFBENet trains.
+        A progress bar while the OFBENets train.
+    jobs
+        OFBENets trained at once, each in its own single-threaded worker process
+        (:data:`WORKER_ENV`): the weights are the same whatever ``jobs``.
+    scheduler
+        ``processes``, ``dask`` or ``tcp://host:port``
+        (:func:`ofbe_data.core.parallel.map_progress`).
 
     Returns
     -------
-    Path
-        ``<out>/<name>/``.
+    list of Path
+        ``<out>/<name>/`` of each dataset, in order.
     """
-    dataset = Path(dataset)
+    folders = [Path(out) / Path(d).name for d in datasets]
+    tasks = []
+    for dataset, folder in zip(datasets, folders, strict=True):
+        folder.mkdir(parents=True, exist_ok=True)
+        tasks.append(_FinalTask(str(dataset), str(folder / OFBENET_NAME), params))
+    fits = map_progress(_fit_ofbenet, tasks, jobs=jobs, desc="final OFBENet", unit="fit", progress=progress,
+                        worker_env=WORKER_ENV, scheduler=scheduler,
+                        postfix=lambda r: f"{r['epochs_run']} epochs",
+                        name=lambda t: f"final OFBENet of {t.dataset}")
+    for dataset, folder, fit in zip(datasets, folders, fits, strict=True):
+        _write_final(Path(dataset), folder, params, fit, benchmark_reports)
+    return folders
+
+
+def _write_final(dataset: Path, folder: Path, params: OFBENetParams, fit: Mapping[str, Any],
+                 benchmark_reports: Sequence[str | Path]) -> None:
+    """Fit the gravity-prior of one dataset and write it and the model card beside its OFBENet."""
     ds = load_dataset(dataset)
     name = dataset.name
-    folder = Path(out) / name
-    folder.mkdir(parents=True, exist_ok=True)
-    task = _FinalTask(str(dataset), str(folder / OFBENET_NAME), params)
-    (fit,) = map_progress(_fit_ofbenet, [task], jobs=1, desc=f"final OFBENet {name}", unit="fit",
-                          progress=progress, worker_env=WORKER_ENV)
     prior = GravityPrior(direction_model=True).fit(ds.X, ds.y, ds.meta)
     prior.save(folder / PRIOR_NAME)
     fs = ds.meta["fs_hz"].to_numpy(dtype=float)
@@ -201,4 +226,3 @@ def train_final(dataset: str | Path, out: str | Path, params: OFBENetParams,
     }
     write_bytes_atomic(folder / CARD_JSON, (json.dumps(card, indent=1, allow_nan=False) + "\n").encode())
     write_bytes_atomic(folder / CARD_MD, _card_markdown(card).encode())
-    return folder
