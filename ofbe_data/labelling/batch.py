@@ -188,8 +188,8 @@ def label_sessions(folders: Sequence[Path], params: LabelParams, out_dir: Path, 
     manifests = {f: _manifest(f) for f in folders}  # read once: the duplicate check and labelling
     dup = _duplicates(folders, manifests)
     todo = [f for f in folders if f not in dup]
-    results = map_progress(_run_one, [(f, params, manifests[f]) for f in todo], jobs=jobs, desc="labelling", unit="session",
-                           progress=progress, scheduler=scheduler, on_error="collect")
+    results = map_progress(_run_one, [(f, params, manifests[f]) for f in todo], jobs=jobs, desc="labelling",
+                           unit="session", progress=progress, scheduler=scheduler, on_error="collect")
     done = {f: (Outcome(f, error=f"{f}: {r.reason}") if isinstance(r, TaskFailure) else r)
             for f, r in zip(todo, results, strict=True)}
     outcomes = [done.get(f) or Outcome(f, error=dup[f]) for f in folders]

@@ -12,7 +12,6 @@ evaluated by pyarrow over whole columns. No Python loop runs per data line.
 
 from __future__ import annotations
 
-import io
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
@@ -25,6 +24,8 @@ import pyarrow.csv as pacsv
 
 from ofbe_data.core.errors import RawFormatError
 from ofbe_data.io.formats.filebytes import read_file_bytes
+from ofbe_data.io.formats.oddlines import NUMBER_CHARS, OddSplit, long_digit_run, split_odd_lines
+from ofbe_data.io.formats.writing import LineHook, _assemble, _csv_body, fixed_point  # noqa: F401 (shared)
 from ofbe_data.io.recording import (
     SKIP_EMPTY,
     SKIP_FIELD_COUNT,
@@ -129,7 +130,7 @@ class _Body:
 
 
 _NUMBER_BYTES = b"0123456789+-.eE\r\n"
-_NUMBER_CHARS = b"0123456789+-.eE"  # _NUMBER_BYTES less the line ends
+_NUMBER_CHARS = NUMBER_CHARS  # _NUMBER_BYTES less the line ends
 _INT_LIMIT = 10**18  # the validating path accepts at most 18 digits
 _LINE_ENDS = b"\r\n"
 
@@ -260,89 +261,150 @@ def _read_body(
                              header_line)
     if len(set(names)) != len(names):
         raise RawFormatError(path, "unique column names", repr(delimiter.join(names)), header_line)
-    invalid: list[SkippedLine] = []
-
-    def on_invalid(row: pacsv.InvalidRow) -> str:
-        line = header_line - 1 + (row.number or 0)
-        invalid.append(SkippedLine(line, SKIP_FIELD_COUNT,
-                                   f"expected {row.expected_columns} fields, found {row.actual_columns}"))
-        return "skip"
-
-    def parse(source: bytes | pa.Buffer, types: dict[str, pa.DataType]) -> pa.Table:
-        invalid.clear()
-        return pacsv.read_csv(
-            pa.BufferReader(source),
-            read_options=pacsv.ReadOptions(use_threads=False, column_names=names, skip_rows=1),
-            parse_options=pacsv.ParseOptions(delimiter=delimiter, quote_char=False,
-                                             ignore_empty_lines=False,
-                                             invalid_row_handler=on_invalid),
-            convert_options=pacsv.ConvertOptions(column_types=types, include_columns=list(wanted)),
-        )
-
     terminated = not data or data[-1:] in (b"\n", b"\r")
     scan = _scan_data_lines(data, data_start, delimiter)
     lines_read = scan.lines_read
+    rows = _Rows(path, names, delimiter, wanted)
     if scan.numeric:
         # the body as a view of the file's bytes (no copy), unless its last line needs an end:
         # pyarrow cannot skip a column line that has no line end
         source = pa.py_buffer(data).slice(header_offset) if terminated else data[header_offset:] + b"\n"
-        fast = _read_typed(wanted, lambda types: parse(source, types))
+        fast = rows.typed(source, header_line, lines_read)
         if fast is not None:
-            table, values = fast
-            row_lines = _row_lines(invalid, header_line, lines_read)
-            if row_lines.shape[0] == table.num_rows:
-                return _Body(values, row_lines, lines_read, sorted(invalid, key=lambda s: s.line), path,
-                             header_line)
+            return fast
     body = data[header_offset:] if terminated else data[header_offset:] + b"\n"
-    try:
-        # pyarrow decodes an invalid row's text as UTF-8 before calling the handler, so
-        # bytes >= 0x80 (never valid in a number) are masked for parsing; messages
-        # quote the original bytes
-        table = parse(body.translate(_MASK_NON_ASCII), {n: pa.binary() for n in names})
-    except pa.ArrowInvalid as exc:
-        raise RawFormatError(path, "CSV data lines", f"unreadable data ({exc})", header_line) from None
-    row_lines = _row_lines(invalid, header_line, lines_read)
-    if row_lines.shape[0] != table.num_rows:  # pragma: no cover - pyarrow contract
-        raise RawFormatError(path, f"{row_lines.shape[0]} parsed rows", str(table.num_rows))
-    ok = np.ones(table.num_rows, dtype=bool)
-    empty = np.ones(table.num_rows, dtype=bool)
-    first_bad: dict[int, str] = {}
-    starts: np.ndarray | None = None
-    for name, kind in wanted.items():
-        col = table.column(name)
-        good = pc.match_substring_regex(col, _INT_RE if kind == "int" else _FLOAT_RE)
-        good_np = good.to_numpy(zero_copy_only=False)
-        empty &= (pc.binary_length(col).to_numpy(zero_copy_only=False) == 0)
-        for i in np.flatnonzero(~good_np & ok):
-            raw = col[int(i)].as_py()
-            if b"?" in raw:  # masked bytes: quote the original field
-                if starts is None:
-                    starts = _line_starts(body)
-                raw = _original_field(body, starts, int(row_lines[i]) - header_line,
-                                      names.index(name), delimiter)
-            first_bad[int(i)] = f"field {name!r} is not a number: {_show(raw)}"
-        ok &= good_np
-    skipped = list(invalid)
-    for i, detail in first_bad.items():
-        if empty[i]:
-            skipped.append(SkippedLine(int(row_lines[i]), SKIP_EMPTY, "empty line"))
-        else:
-            skipped.append(SkippedLine(int(row_lines[i]), SKIP_NON_NUMERIC, detail))
-    keep = pa.array(ok)
-    values: dict[str, np.ndarray] = {}
-    for name, kind in wanted.items():
-        col = pc.utf8_trim_whitespace(pc.cast(table.column(name).filter(keep), pa.string()))
-        col = pc.utf8_ltrim(col, "+")  # the patterns allow a plus sign, pyarrow's casts do not
-        values[name] = pc.cast(col, pa.int64() if kind == "int" else pa.float64()).to_numpy()
-    skipped.sort(key=lambda s: s.line)
-    out = _Body(values, row_lines[ok], lines_read, skipped, path, header_line)
-    for name, kind in wanted.items():
-        if kind == "float":  # an exponent beyond float64's range parses as ±inf
-            overflow = ~np.isfinite(out.values[name])
-            _drop(out, overflow, SKIP_NON_NUMERIC,
-                  [f"field {name!r} is out of float64 range: {out.values[name][i]}"
-                   for i in np.flatnonzero(overflow)])
-    return out
+    if not scan.numeric:
+        split = split_odd_lines(body, data_start - header_offset, delimiter)
+        around = None if split is None else rows.around(split, header_line, lines_read)
+        if around is not None:
+            return around
+    return rows.validated(body, header_line, lines_read)
+
+
+@dataclass(frozen=True)
+class _Rows:
+    """How to parse the data lines of one file: the typed fast path, the validating path,
+    and the two together around a few garbled lines (:mod:`~ofbe_data.io.formats.oddlines`)."""
+
+    path: Path
+    names: list[str]
+    delimiter: str
+    wanted: Mapping[str, str]
+
+    def parse(self, source: bytes | pa.Buffer, types: dict[str, pa.DataType], header_line: int,
+              invalid: list[SkippedLine]) -> pa.Table:
+        """``source`` (column line, data lines) through pyarrow; lines with the wrong number of
+        fields go to ``invalid`` (emptied first) with their file line."""
+        invalid.clear()
+
+        def on_invalid(row: pacsv.InvalidRow) -> str:
+            line = header_line - 1 + (row.number or 0)
+            invalid.append(SkippedLine(line, SKIP_FIELD_COUNT,
+                                       f"expected {row.expected_columns} fields, found {row.actual_columns}"))
+            return "skip"
+
+        return pacsv.read_csv(
+            pa.BufferReader(source),
+            read_options=pacsv.ReadOptions(use_threads=False, column_names=self.names, skip_rows=1),
+            parse_options=pacsv.ParseOptions(delimiter=self.delimiter, quote_char=False,
+                                             ignore_empty_lines=False, invalid_row_handler=on_invalid),
+            convert_options=pacsv.ConvertOptions(column_types=types, include_columns=list(self.wanted)),
+        )
+
+    def typed(self, source: bytes | pa.Buffer, header_line: int, lines_read: int) -> _Body | None:
+        """The fast path (:func:`_read_typed`): None when it does not apply."""
+        invalid: list[SkippedLine] = []
+        fast = _read_typed(self.wanted, lambda types: self.parse(source, types, header_line, invalid))
+        if fast is None:
+            return None
+        table, values = fast
+        row_lines = _row_lines(invalid, header_line, lines_read)
+        if row_lines.shape[0] != table.num_rows:
+            return None
+        return _Body(values, row_lines, lines_read, sorted(invalid, key=lambda s: s.line), self.path,
+                     header_line)
+
+    def around(self, split: OddSplit, header_line: int, lines_read: int) -> _Body | None:
+        """The fast path over the clean lines and the validating path over the odd ones, lines
+        mapped back; None unless every odd line is skipped (a valid one would need merging).
+
+        The typed parse accepts two kinds of field the patterns refuse, both made of number
+        bytes only: exponents of four digits (``1e-1234`` reads as 0) and integers of more
+        than 18 digits with a small value; a clean part that could hold one is left to the
+        validating path."""
+        kinds = set(self.wanted.values())
+        if ("float" in kinds and (b"e" in split.clean or b"E" in split.clean)
+                or "int" in kinds and long_digit_run(split.clean)):
+            return None
+        clean = self.typed(split.clean, 0, split.clean_lines.size)  # body line k = data line k - 1
+        if clean is None:
+            return None
+        odd = self.validated(split.odd, 0, split.odd_lines.size)
+        if odd.lines.size:
+            return None
+        first = header_line + 1  # file line of data line 0
+        skipped = ([SkippedLine(first + int(split.clean_lines[s.line - 1]), s.kind, s.detail)
+                    for s in clean.skipped]
+                   + [SkippedLine(first + int(split.odd_lines[s.line - 1]), s.kind, s.detail)
+                      for s in odd.skipped])
+        skipped.sort(key=lambda s: s.line)
+        return _Body(clean.values, first + split.clean_lines[clean.lines - 1], lines_read, skipped,
+                     self.path, header_line)
+
+    def validated(self, body: bytes, header_line: int, lines_read: int) -> _Body:
+        """The validating path: every field as bytes, tested by a regular expression."""
+        path, names, delimiter, wanted = self.path, self.names, self.delimiter, self.wanted
+        invalid: list[SkippedLine] = []
+        try:
+            # pyarrow decodes an invalid row's text as UTF-8 before calling the handler, so
+            # bytes >= 0x80 (never valid in a number) are masked for parsing; messages
+            # quote the original bytes
+            table = self.parse(body.translate(_MASK_NON_ASCII), {n: pa.binary() for n in names}, header_line,
+                               invalid)
+        except pa.ArrowInvalid as exc:
+            raise RawFormatError(path, "CSV data lines", f"unreadable data ({exc})", header_line) from None
+        row_lines = _row_lines(invalid, header_line, lines_read)
+        if row_lines.shape[0] != table.num_rows:  # pragma: no cover - pyarrow contract
+            raise RawFormatError(path, f"{row_lines.shape[0]} parsed rows", str(table.num_rows))
+        ok = np.ones(table.num_rows, dtype=bool)
+        empty = np.ones(table.num_rows, dtype=bool)
+        first_bad: dict[int, str] = {}
+        starts: np.ndarray | None = None
+        for name, kind in wanted.items():
+            col = table.column(name)
+            good = pc.match_substring_regex(col, _INT_RE if kind == "int" else _FLOAT_RE)
+            good_np = good.to_numpy(zero_copy_only=False)
+            empty &= (pc.binary_length(col).to_numpy(zero_copy_only=False) == 0)
+            for i in np.flatnonzero(~good_np & ok):
+                raw = col[int(i)].as_py()
+                if b"?" in raw:  # masked bytes: quote the original field
+                    if starts is None:
+                        starts = _line_starts(body)
+                    raw = _original_field(body, starts, int(row_lines[i]) - header_line,
+                                          names.index(name), delimiter)
+                first_bad[int(i)] = f"field {name!r} is not a number: {_show(raw)}"
+            ok &= good_np
+        skipped = list(invalid)
+        for i, detail in first_bad.items():
+            if empty[i]:
+                skipped.append(SkippedLine(int(row_lines[i]), SKIP_EMPTY, "empty line"))
+            else:
+                skipped.append(SkippedLine(int(row_lines[i]), SKIP_NON_NUMERIC, detail))
+        keep = pa.array(ok)
+        values: dict[str, np.ndarray] = {}
+        for name, kind in wanted.items():
+            col = pc.utf8_trim_whitespace(pc.cast(table.column(name).filter(keep), pa.string()))
+            col = pc.utf8_ltrim(col, "+")  # the patterns allow a plus sign, pyarrow's casts do not
+            values[name] = pc.cast(col, pa.int64() if kind == "int" else pa.float64()).to_numpy()
+        skipped.sort(key=lambda s: s.line)
+        out = _Body(values, row_lines[ok], lines_read, skipped, path, header_line)
+        for name, kind in wanted.items():
+            if kind == "float":  # an exponent beyond float64's range parses as ±inf
+                overflow = ~np.isfinite(out.values[name])
+                _drop(out, overflow, SKIP_NON_NUMERIC,
+                      [f"field {name!r} is out of float64 range: {out.values[name][i]}"
+                       for i in np.flatnonzero(overflow)])
+        return out
 
 
 def _drop(body: _Body, bad: np.ndarray, kind: str, details: Sequence[str] | str) -> None:
@@ -532,40 +594,3 @@ def format_utc(stamp: datetime) -> str:
 
 
 _read_bytes = read_file_bytes
-
-
-def _csv_body(columns: Sequence[pa.Array], delimiter: str = ",") -> bytes:
-    """Data lines (no header) of equal-length columns, formatted by pyarrow."""
-    table = pa.table(list(columns), names=[f"c{i}" for i in range(len(columns))])
-    buf = io.BytesIO()
-    pacsv.write_csv(table, buf, pacsv.WriteOptions(include_header=False, quoting_style="none",
-                                                   delimiter=delimiter))
-    return buf.getvalue()
-
-
-def fixed_point(values: np.ndarray, decimals: int) -> pa.Array:
-    """A pyarrow decimal array that prints ``values`` with exactly ``decimals`` decimals.
-
-    Built straight from the unscaled integers (no per-value Python work), so writing
-    a vendor-style fixed-point CSV costs about as much as writing integers.
-    """
-    ints = np.rint(np.asarray(values, dtype=np.float64) * 10.0**decimals).astype(np.int64)
-    words = np.empty((ints.shape[0], 2), dtype=np.int64)
-    words[:, 0] = ints
-    words[:, 1] = np.where(ints < 0, -1, 0)
-    return pa.Array.from_buffers(pa.decimal128(38, decimals), ints.shape[0],
-                                 [None, pa.py_buffer(words.tobytes())])
-
-
-LineHook = Callable[[list[bytes]], list[bytes]]
-
-
-def _assemble(preamble: Sequence[str], header_line: str, body: bytes,
-              corrupt: LineHook | None) -> bytes:
-    if corrupt is not None:
-        lines = body.split(b"\n")
-        trailing = lines[-1] == b""
-        lines = corrupt(lines[:-1] if trailing else lines)
-        body = b"\n".join(lines) + (b"\n" if trailing else b"")
-    head = "".join(line + "\n" for line in (*preamble, header_line))
-    return head.encode("utf-8") + body
