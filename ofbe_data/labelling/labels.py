@@ -58,7 +58,14 @@ from ofbe_data.labelling.checks import (
 from ofbe_data.labelling.convergence import PAPER_THRESHOLD, PAPER_WINDOW, convergence_index
 from ofbe_data.labelling.orientation import apparent_bias, nearest_axis, rodrigues_label, roll_pitch
 from ofbe_data.labelling.poses import PoseParams
-from ofbe_data.labelling.stationarity import StaticParams, check_static, column_mean, is_still, longest_run
+from ofbe_data.labelling.stationarity import (
+    StaticParams,
+    centred_sums,
+    check_static,
+    column_mean,
+    is_still,
+    longest_run,
+)
 from ofbe_data.labelling.sync import SyncError, SyncParams, synchronise, tap_signals
 
 LABELS_FORMAT = "ofbe-labels/1"
@@ -232,15 +239,17 @@ class _Segment:
     static_checked: bool = False  # chosen by the static detector itself: no second check
 
 
-def _own_segment(rec: Recording, taps: np.ndarray, params: LabelParams) -> tuple[_Segment, bool]:
+def _own_segment(rec: Recording, taps: np.ndarray, params: LabelParams,
+                 centred: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[_Segment, bool]:
     """Stationary segment of a recording from its own signal: between its first and last tap
-    (``taps``, s, its clock), else the longest static run. Returns the segment and whether
-    taps bounded it."""
+    (``taps``, s, its clock), else the longest static run (``centred``: the recording's
+    :func:`centred_sums` when the caller has them). Returns the segment and whether taps
+    bounded it."""
     if taps.size >= 2:
         a = int(np.searchsorted(rec.t, taps[0] + params.margin_s, side="left"))
         b = int(np.searchsorted(rec.t, taps[-1] - params.margin_s, side="right"))
         return _Segment(a, max(a, b)), True
-    static = check_static(rec.acc, rec.fs_hz, params.static)
+    static = check_static(rec.acc, rec.fs_hz, params.static, *(centred or (None, None)))
     a, b = longest_run(static.static)
     if b <= a:
         return _Segment(0, 0, "the static detector found no still part"), False
@@ -459,7 +468,8 @@ def _label_alone(out: SessionLabels, rec_id: str, recs: dict[str, Recording],
     rows = []
     for dev in m.duts:
         rec = recs[dev.id]
-        seg, tapped = _own_segment(rec, tap_signals(rec, params.sync).taps, params)
+        centred = centred_sums(rec.acc)  # shared by the high-pass and the static detector
+        seg, tapped = _own_segment(rec, tap_signals(rec, params.sync, centred).taps, params, centred)
         mean = _segment_mean(rec, seg)
         bad = _quality(rec, seg, params, m.g_local, mean=mean)
         if bad is not None:

@@ -76,7 +76,21 @@ def row_sum(x: np.ndarray) -> np.ndarray:
     return out
 
 
-def moving_variance_norm(acc: np.ndarray, window: int, mean: np.ndarray | None = None) -> np.ndarray:
+def centred_sums(acc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``acc``'s column mean (:func:`column_mean`) and the running sums of ``acc − mean`` with a
+    leading row of zeros, (N + 1, 3): where :func:`moving_variance_norm` and the tap high-pass
+    (:func:`ofbe_data.labelling.sync.highpass`) both start over a whole recording, so one
+    computation serves both, with the same bits."""
+    x = np.asarray(acc, dtype=np.float64)
+    c = np.empty((x.shape[0] + 1,) + x.shape[1:])
+    mean = column_mean(x, c[1:] if x.shape[0] else None)
+    c[0] = 0.0
+    np.cumsum(x - mean, axis=0, out=c[1:])
+    return mean, c
+
+
+def moving_variance_norm(acc: np.ndarray, window: int, mean: np.ndarray | None = None,
+                         sums: np.ndarray | None = None) -> np.ndarray:
     """Sum over axes of the variance of ``acc`` in a sliding window.
 
     Parameters
@@ -87,6 +101,8 @@ def moving_variance_norm(acc: np.ndarray, window: int, mean: np.ndarray | None =
         Window length, samples (≥ 2, ≤ N).
     mean
         ``acc.mean(axis=0)`` when the caller has it (:func:`column_mean`), else computed here.
+    sums
+        With ``mean``, the running sums of ``acc − mean`` from :func:`centred_sums` (read only).
 
     Returns
     -------
@@ -97,11 +113,14 @@ def moving_variance_norm(acc: np.ndarray, window: int, mean: np.ndarray | None =
     n, k = x.shape
     # running sums with a leading row of zeros, written in place into one buffer each (the
     # operations, and so the bits, are those of the textbook expressions in the comments)
-    c1 = np.empty((n + 1, k))
-    c1[0] = 0.0
-    # centred: keeps the cumulative sums well conditioned
-    x = x - (column_mean(x, c1[1:] if k == 3 else None) if mean is None else mean)
-    np.cumsum(x, axis=0, out=c1[1:])
+    if sums is not None and mean is not None:
+        c1, x = sums, x - mean
+    else:
+        c1 = np.empty((n + 1, k))
+        c1[0] = 0.0
+        # centred: keeps the cumulative sums well conditioned
+        x = x - (column_mean(x, c1[1:] if k == 3 else None) if mean is None else mean)
+        np.cumsum(x, axis=0, out=c1[1:])
     c2 = np.empty((n + 1, k))
     c2[0] = 0.0
     np.multiply(x, x, out=x)
@@ -150,7 +169,7 @@ def _window(n: int, fs_hz: float, params: StaticParams) -> int:
 
 
 def check_static(acc: np.ndarray, fs_hz: float, params: StaticParams = StaticParams(),
-                 mean: np.ndarray | None = None) -> StaticCheck:
+                 mean: np.ndarray | None = None, sums: np.ndarray | None = None) -> StaticCheck:
     """Mark the samples of a segment that lie in no moving window.
 
     Parameters
@@ -161,8 +180,9 @@ def check_static(acc: np.ndarray, fs_hz: float, params: StaticParams = StaticPar
         Sample rate, Hz (sets the window length in samples).
     params
         Detector parameters.
-    mean
-        ``acc.mean(axis=0)`` when the caller has it (saves a pass).
+    mean, sums
+        ``acc.mean(axis=0)`` when the caller has it (saves a pass), and with it the running sums
+        of :func:`centred_sums`.
 
     Returns
     -------
@@ -172,7 +192,7 @@ def check_static(acc: np.ndarray, fs_hz: float, params: StaticParams = StaticPar
     window = _window(n, fs_hz, params)
     if n < window:
         return StaticCheck(np.zeros(n, dtype=bool), float("nan"), float("nan"), float("nan"))
-    return _static_check(moving_variance_norm(acc, window, mean), n, window, params)
+    return _static_check(moving_variance_norm(acc, window, mean, sums), n, window, params)
 
 
 def _static_check(v: np.ndarray, n: int, window: int, params: StaticParams) -> StaticCheck:

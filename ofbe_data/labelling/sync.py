@@ -116,7 +116,8 @@ class SyncError(ValueError):
     """Neither the taps nor the header stamps can align two recordings."""
 
 
-def highpass(t: np.ndarray, acc: np.ndarray, highpass_s: float) -> np.ndarray:
+def highpass(t: np.ndarray, acc: np.ndarray, highpass_s: float,
+             centred: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """Specific force minus its centred moving mean (a zero-phase high-pass).
 
     Parameters
@@ -128,6 +129,9 @@ def highpass(t: np.ndarray, acc: np.ndarray, highpass_s: float) -> np.ndarray:
     highpass_s
         Length of the centred moving mean, s (rounded to an odd number of samples, so the
         filter has no delay at any sample rate).
+    centred
+        ``centred_sums(acc)`` (:func:`~ofbe_data.labelling.stationarity.centred_sums`) when
+        the caller has it (read only).
 
     Returns
     -------
@@ -136,15 +140,19 @@ def highpass(t: np.ndarray, acc: np.ndarray, highpass_s: float) -> np.ndarray:
     """
     n = acc.shape[0]
     acc = np.asarray(acc, dtype=np.float64)
-    c = np.empty((n + 1,) + acc.shape[1:])
-    x = acc - column_mean(acc, c[1:] if n else None)
+    if centred is not None:
+        x, c = acc - centred[0], centred[1]
+    else:
+        c = np.empty((n + 1,) + acc.shape[1:])
+        x = acc - column_mean(acc, c[1:] if n else None)
     if n < 3:
         return x
     dt = float(np.median(np.diff(t)))
     w = int(max(3, round(highpass_s / dt)) | 1)
     w = min(w, n if n % 2 else n - 1)
-    c[0] = 0.0
-    np.cumsum(x, axis=0, out=c[1:])
+    if centred is None:
+        c[0] = 0.0
+        np.cumsum(x, axis=0, out=c[1:])
     half = w // 2
     # sample i takes the mean of x over lo … hi − 1, hi = min(i + half + 1, n) and
     # lo = max(i − half, 0), that is (c[hi] − c[lo]) / (hi − lo): the operations of a gather
@@ -223,9 +231,11 @@ class TapSignals:
     taps: np.ndarray
 
 
-def tap_signals(rec: Recording, params: SyncParams) -> TapSignals:
-    """High-pass a recording, take its tap envelope and find its taps."""
-    hp = highpass(rec.t, rec.acc, params.highpass_s)
+def tap_signals(rec: Recording, params: SyncParams,
+                centred: tuple[np.ndarray, np.ndarray] | None = None) -> TapSignals:
+    """High-pass a recording, take its tap envelope and find its taps (``centred``: see
+    :func:`highpass`)."""
+    hp = highpass(rec.t, rec.acc, params.highpass_s, centred)
     # ‖hp‖ per row as np.linalg.norm(hp, axis=1) computes it: the squares summed by
     # x.sum(axis=1), then the root
     envelope = np.sqrt(row_sum(hp * hp))

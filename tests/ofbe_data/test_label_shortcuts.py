@@ -50,3 +50,17 @@ def test_typical_norm_problem_agrees_with_the_median(k: int, g: float, deviation
 def test_column_mean_has_the_bits_of_numpy_mean() -> None:
     x = _signals()[1]
     assert column_mean(x).tobytes() == x.mean(axis=0).tobytes()
+
+
+@pytest.mark.parametrize("k", [0, 1, 3, 4, 5, 8])
+def test_shared_centred_sums_give_the_same_bits(k: int) -> None:
+    from ofbe_data.labelling.stationarity import centred_sums
+    from ofbe_data.labelling.sync import highpass
+
+    x = _signals()[k]
+    t = np.arange(x.shape[0]) / 150.0
+    centred = centred_sums(x)
+    a, b = check_static(x, 150.0), check_static(x, 150.0, StaticParams(), *centred)
+    assert a.static.tobytes() == b.static.tobytes()
+    assert (a.noise_floor, a.threshold, a.peak) == (b.noise_floor, b.threshold, b.peak) or np.isnan(a.peak)
+    assert highpass(t, x, 0.25).tobytes() == highpass(t, x, 0.25, centred).tobytes()
