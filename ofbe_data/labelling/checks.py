@@ -244,8 +244,9 @@ def clipped_samples(x: np.ndarray, min_count: int = 5, min_fraction: float = 0.0
     x = np.asarray(x, dtype=np.float64)
     n = x.shape[0]
     need = max(min_count, min_fraction * n)
+    columns = np.ascontiguousarray(x.T)  # contiguous columns: the counts and extremes are exact either way
     for k in range(x.shape[1]):
-        col = x[:, k]
+        col = columns[k]
         if col.size == 0:
             continue
         hi, lo = col.max(), col.min()

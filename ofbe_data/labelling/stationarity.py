@@ -204,9 +204,17 @@ def _static_check(v: np.ndarray, n: int, window: int, params: StaticParams) -> S
         return StaticCheck(np.ones(n, dtype=bool), floor, float(threshold), float(v.max()))
     # a sample is static when no window that covers it is moving
     cover = np.concatenate(([0], np.cumsum(moving)))
-    lo = np.clip(np.arange(n) - window + 1, 0, v.shape[0])
-    hi = np.clip(np.arange(n) + 1, 0, v.shape[0])
-    static = (cover[hi] - cover[lo]) == 0
+    # sample i is covered by windows lo … hi − 1, lo = clip(i − window + 1, 0, m) and
+    # hi = clip(i + 1, 0, m), m = n − window + 1 windows: the gathers cover[hi] − cover[lo]
+    # done by slices (lo is 0 for i < window − 1, hi is m for i ≥ m − 1)
+    m = v.shape[0]
+    hi_cover = np.empty(n, dtype=cover.dtype)
+    hi_cover[:m] = cover[1:m + 1]
+    hi_cover[m:] = cover[m]
+    lo_cover = np.empty(n, dtype=cover.dtype)
+    lo_cover[:window - 1] = cover[0]
+    lo_cover[window - 1:] = cover[:n - window + 1]
+    static = (hi_cover - lo_cover) == 0
     return StaticCheck(static, floor, float(threshold), float(v.max()))
 
 

@@ -52,3 +52,20 @@ def test_longest_run():
     assert longest_run(np.array([0, 1, 1, 0, 1, 1, 1, 0], bool)) == (4, 7)
     assert longest_run(np.zeros(5, bool)) == (0, 0)
     assert longest_run(np.ones(5, bool)) == (0, 5)
+
+
+def test_static_mask_by_slices_matches_the_gathers():
+    from ofbe_data.labelling.stationarity import _static_check
+
+    rng = np.random.default_rng(0)
+    for _ in range(500):
+        n = int(rng.integers(2, 300))
+        window = int(rng.integers(2, n + 1))
+        v = rng.random(n - window + 1) ** 4
+        got = _static_check(v, n, window, StaticParams(variance_factor=float(rng.uniform(0.5, 8))))
+        moving = v > got.threshold
+        cover = np.concatenate(([0], np.cumsum(moving)))
+        lo = np.clip(np.arange(n) - window + 1, 0, v.shape[0])
+        hi = np.clip(np.arange(n) + 1, 0, v.shape[0])
+        expected = (cover[hi] - cover[lo]) == 0 if moving.any() else np.ones(n, dtype=bool)
+        assert np.array_equal(got.static, expected)
