@@ -19,7 +19,10 @@ Usage: python benchmarks/scale.py [--devices N] [--sessions M] [--raw DIR] [--jo
    wall-clock runs of each. Prints recordings/s, MB/s and the cost of one recording in
    core-seconds (wall × workers / recordings), and the speed-up from 1 to 2 workers. It also
    checks that every run wrote the same bytes (SHA-256 of every label and dataset file) and
-   prints what each step writes per recording.
+   prints what each step writes per recording, and the part of each run spent in the calling
+   process (:data:`SERIAL`, timed by wrapping those functions): the campaign fit and the
+   products' writing when labelling, the dataset writer when building. That part does not
+   shrink with more workers and bounds the speed-up of a cluster.
 3. Overhead per task: ``map_progress`` of a no-op (the builtin ``abs``) over one item per
    worker and over ``--tasks`` more, with each scheduler and worker count; the difference
    divided by the extra items is the wall-clock cost of one task with that many workers at
@@ -68,6 +71,7 @@ class Run:
     megabytes: float
     digest: str
     out_megabytes: float
+    serial_s: float
 
     @property
     def per_recording_core_s(self) -> float:
@@ -88,14 +92,55 @@ def tree_digest(folder: Path) -> str:
     return h.hexdigest()
 
 
-def best_of(repeat: int, work: Callable[[], Any]) -> float:
-    """Smallest wall-clock seconds of ``repeat`` calls of ``work``."""
-    times = []
+#: What runs in the calling process (the client), not in the workers, whatever the scheduler:
+#: labelling's campaign fit and product writing, and the dataset writer. Timed by wrapping.
+SERIAL = {"label": [("ofbe_data.labelling.batch", "", "fit_campaign"),
+                    ("ofbe_data.labelling.batch", "", "write_session"),
+                    ("ofbe_data.labelling.batch", "", "write_campaign_fit")],
+          "build": [("ofbe_data.dataset.writer", "WindowWriter", "append"),
+                    ("ofbe_data.dataset.writer", "WindowWriter", "__exit__")]}
+
+
+@contextlib.contextmanager
+def timed_calls(targets: Sequence[tuple[str, str, str]]) -> Iterator[list[float]]:
+    """Wrap functions (module, class or "", attribute) to add their seconds to the yielded
+    one-element list; restored on exit."""
+    import importlib
+
+    total = [0.0]
+    saved = []
+    for module, cls, attr in targets:
+        owner: Any = importlib.import_module(module)
+        if cls:
+            owner = getattr(owner, cls)
+        original = getattr(owner, attr)
+
+        def wrapper(*a: Any, __f: Callable[..., Any] = original, **k: Any) -> Any:
+            t0 = time.perf_counter()
+            try:
+                return __f(*a, **k)
+            finally:
+                total[0] += time.perf_counter() - t0
+
+        saved.append((owner, attr, original))
+        setattr(owner, attr, wrapper)
+    try:
+        yield total
+    finally:
+        for owner, attr, original in saved:
+            setattr(owner, attr, original)
+
+
+def best_of(repeat: int, work: Callable[[], Any], step: str) -> tuple[float, float]:
+    """Smallest wall-clock seconds of ``repeat`` calls of ``work``, and that call's seconds in
+    the client's serial part (:data:`SERIAL`)."""
+    runs = []
     for _ in range(repeat):
-        t0 = time.perf_counter()
-        work()
-        times.append(time.perf_counter() - t0)
-    return min(times)
+        with timed_calls(SERIAL[step]) as serial:
+            t0 = time.perf_counter()
+            work()
+            runs.append((time.perf_counter() - t0, serial[0]))
+    return min(runs)
 
 
 def raw_size(folder: Path) -> tuple[int, float]:
@@ -118,7 +163,7 @@ def time_steps(raw: Path, scratch: Path, scheduler: str, jobs: int, repeat: int,
         outcomes[:] = label_sessions(sessions, LabelParams(), labels_root, jobs=jobs, progress=False,
                                      scheduler=scheduler)
 
-    label_s = best_of(repeat, label)
+    label_s, label_serial = best_of(repeat, label, "label")
     failed = [o for o in outcomes if o.error]
     if failed:
         raise SystemExit(f"labelling failed: {failed[0].folder}: {failed[0].error}")
@@ -130,12 +175,12 @@ def time_steps(raw: Path, scratch: Path, scheduler: str, jobs: int, repeat: int,
         built[:] = [build_dataset(labels_dir, raw, dataset, DatasetParams(), name=campaign, jobs=jobs,
                                   force=True, progress=False, scheduler=scheduler)]
 
-    build_s = best_of(repeat, build)
+    build_s, build_serial = best_of(repeat, build, "build")
     n_files, megabytes = raw_size(raw)
     return [Run("label", name, jobs, label_s, n_files, megabytes, tree_digest(labels_root),
-                tree_megabytes(labels_root)),
+                tree_megabytes(labels_root), label_serial),
             Run("build", name, jobs, build_s, int(built[0].n_recordings), megabytes, tree_digest(dataset),
-                tree_megabytes(dataset))]
+                tree_megabytes(dataset), build_serial)]
 
 
 @contextlib.contextmanager
@@ -174,13 +219,13 @@ def report(runs: Sequence[Run], overhead: dict[tuple[str, int], dict[str, float]
            jobs: Sequence[int]) -> None:
     """Print the tables."""
     print(f"{'step':6} {'scheduler':10} {'workers':>7} {'seconds':>8} {'rec/s':>8} {'MB/s':>7} "
-          f"{'core-ms/rec':>12} {'speed-up':>9}")
+          f"{'core-ms/rec':>12} {'client ms/rec':>14} {'speed-up':>9}")
     for r in runs:
         base = next((b for b in runs
                      if b.step == r.step and b.scheduler == r.scheduler and b.jobs == min(jobs)), r)
         print(f"{r.step:6} {r.scheduler:10} {r.jobs:7d} {r.seconds:8.2f} {r.recordings / r.seconds:8.1f} "
               f"{r.megabytes / r.seconds:7.1f} {r.per_recording_core_s * 1e3:12.2f} "
-              f"{base.seconds / r.seconds:8.2f}x")
+              f"{r.serial_s / r.recordings * 1e3:14.2f} {base.seconds / r.seconds:8.2f}x")
     for step in ("label", "build"):
         mine = [r for r in runs if r.step == step]
         print(f"{step}: outputs identical across the {len(mine)} runs: "
@@ -232,7 +277,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                 with resolved(scheduler, jobs) as address:
                     overhead[scheduler, jobs] = task_overhead(address, jobs, args.tasks)
         report(runs, overhead, args.jobs)
-        print("core-ms/rec: wall × workers / recordings; speed-up: against the fewest workers; "
+        print("core-ms/rec: wall × workers / recordings; client ms/rec: the part of it spent in the calling "
+              "process whatever the workers (labelling: campaign fit and writing the products; building: "
+              "the dataset writer), which more workers do not shorten; speed-up: against the fewest workers; "
               f"{WARM}: a LocalCluster started before the runs and joined by address")
         if args.json:
             args.json.write_text(json.dumps({
