@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections import Counter
 from dataclasses import dataclass, field
 from datetime import datetime
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -162,6 +163,12 @@ class Recording:
     def n(self) -> int:
         """Number of samples."""
         return int(self.t.shape[0])
+
+    @cached_property
+    def median_step_s(self) -> float:
+        """Median step between consecutive time stamps, ``np.median(np.diff(t))``, s (NaN with
+        fewer than two samples); computed once, for the checks and the tap high-pass alike."""
+        return float(np.median(np.diff(self.t))) if self.n >= 2 else float("nan")
 
     @property
     def fs_hz(self) -> float:

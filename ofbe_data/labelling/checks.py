@@ -177,19 +177,22 @@ def rate_problem(fs_hz: float, nominal_hz: float | None, warn_deviation: float =
     return None
 
 
-def rate_step(t: np.ndarray, block: int = 500) -> tuple[int, float, float] | None:
+def rate_step(t: np.ndarray, block: int = 500, median_step: float | None = None,
+              ) -> tuple[int, float, float] | None:
     """A change of sample rate inside a recording, as (first sample of the changed block, rate
     before, rate after) in Hz, or None.
 
     The file is cut into blocks of ``block`` samples; a block whose median step differs from
     the whole file's median step by :data:`RATE_STEP_FACTOR` or more marks the change (gaps
     from lost samples are single long steps and do not move a block's median).
+    ``median_step`` is ``np.median(np.diff(t))`` when the caller has it
+    (:attr:`~ofbe_data.io.recording.Recording.median_step_s`).
     """
     t = np.asarray(t, dtype=np.float64)
     if t.size < 2 * block:
         return None
     steps = np.diff(t)
-    overall = float(np.median(steps))
+    overall = float(np.median(steps)) if median_step is None else median_step
     if not overall > 0:
         return None
     n = steps.size // block

@@ -344,7 +344,7 @@ def _rate_warnings(out: SessionLabels, rec_id: str, dev_id: str, rec: Recording)
                             f"{cv:.0%} of the median step {rec.header.get('step_median_s')} s, longest "
                             f"{rec.header.get('step_max_s')} s, {len(rec.diagnostics.gaps)} gaps); "
                             "used as logged, not resampled")
-    step = rate_step(rec.t)
+    step = rate_step(rec.t, median_step=rec.median_step_s)
     if step is not None:
         i, before, after = step
         line = int(rec.line[min(i, rec.n - 1)])

@@ -117,7 +117,8 @@ class SyncError(ValueError):
 
 
 def highpass(t: np.ndarray, acc: np.ndarray, highpass_s: float,
-             centred: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+             centred: tuple[np.ndarray, np.ndarray] | None = None, median_step: float | None = None,
+             ) -> np.ndarray:
     """Specific force minus its centred moving mean (a zero-phase high-pass).
 
     Parameters
@@ -132,6 +133,8 @@ def highpass(t: np.ndarray, acc: np.ndarray, highpass_s: float,
     centred
         ``centred_sums(acc)`` (:func:`~ofbe_data.labelling.stationarity.centred_sums`) when
         the caller has it (read only).
+    median_step
+        ``np.median(np.diff(t))`` when the caller has it.
 
     Returns
     -------
@@ -147,7 +150,7 @@ def highpass(t: np.ndarray, acc: np.ndarray, highpass_s: float,
         x = acc - column_mean(acc, c[1:] if n else None)
     if n < 3:
         return x
-    dt = float(np.median(np.diff(t)))
+    dt = float(np.median(np.diff(t))) if median_step is None else median_step
     w = int(max(3, round(highpass_s / dt)) | 1)
     w = min(w, n if n % 2 else n - 1)
     if centred is None:
@@ -235,7 +238,7 @@ def tap_signals(rec: Recording, params: SyncParams,
                 centred: tuple[np.ndarray, np.ndarray] | None = None) -> TapSignals:
     """High-pass a recording, take its tap envelope and find its taps (``centred``: see
     :func:`highpass`)."""
-    hp = highpass(rec.t, rec.acc, params.highpass_s, centred)
+    hp = highpass(rec.t, rec.acc, params.highpass_s, centred, rec.median_step_s)
     # ‖hp‖ per row as np.linalg.norm(hp, axis=1) computes it: the squares summed by
     # x.sum(axis=1), then the root
     envelope = np.sqrt(row_sum(hp * hp))
