@@ -180,13 +180,13 @@ def test_iter_ordered_raises_at_the_failed_item(scheduler: str) -> None:
     assert got == [0, 10, 20]
 
 
-def _label_or_die(folder, params, keep_segments=False):
+def _label_or_die(folder, params, keep_segments=False, manifest=None):
     """``label_session``, except that the worker labelling the second session dies."""
     from ofbe_data.labelling.labels import label_session
 
     if folder.name.endswith("pc002"):
         os._exit(3)
-    return label_session(folder, params, keep_segments=keep_segments)
+    return label_session(folder, params, keep_segments=keep_segments, manifest=manifest)
 
 
 def test_ofbe_label_names_a_session_whose_worker_died_and_writes_the_others(tmp_path, capsys,
