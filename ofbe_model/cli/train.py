@@ -87,7 +87,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (OfbeError, OSError) as exc:
         return fail(PROG, str(exc), 1)
     if not args.quiet:
-        what = ", ".join(f"{d} {p}" for d, p in runs)
+        what = ", ".join(f"{p} on {d}" for d, p in runs)
         print(f"{PROG}: trained {what} in {time.perf_counter() - t0:.0f} s; summaries: "
               f"{', '.join(map(str, written))}", file=sys.stderr)
     return 0
