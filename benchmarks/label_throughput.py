@@ -175,7 +175,7 @@ BREAKDOWN_STEPS: tuple[tuple[str, str, str], ...] = (
     ("  read_device_file (readers)", "ofbe_data.io.formats", "read_device_file"),
     ("    pyarrow.csv.read_csv (the parse)", "pyarrow.csv", "read_csv"),
     ("    _clean_times", "ofbe_data.io.formats.common", "_clean_times"),
-    ("    _read_bytes (read + SHA-256 of the bytes)", "ofbe_data.io.formats.common", "_read_bytes"),
+    ("    read_file_bytes (read + SHA-256)", "ofbe_data.io.formats.filebytes", "read_file_bytes"),
     ("  sha256_file (session.yaml only)", "ofbe_data.labelling.labels", "sha256_file"),
     ("load_manifest (once per session)", "ofbe_data.io.manifest", "load_manifest"),
     ("  tap_signals (high-pass, envelope, taps)", "ofbe_data.labelling.sync", "tap_signals"),

@@ -23,9 +23,7 @@ import pyarrow.compute as pc
 import pyarrow.csv as pacsv
 
 from ofbe_data.core.errors import RawFormatError
-from ofbe_data.io.formats.filebytes import read_file_bytes
 from ofbe_data.io.formats.oddlines import NUMBER_CHARS, OddSplit, long_digit_run, split_odd_lines
-from ofbe_data.io.formats.writing import LineHook, _assemble, _csv_body, fixed_point  # noqa: F401 (shared)
 from ofbe_data.io.recording import (
     SKIP_EMPTY,
     SKIP_FIELD_COUNT,
@@ -130,7 +128,6 @@ class _Body:
 
 
 _NUMBER_BYTES = b"0123456789+-.eE\r\n"
-_NUMBER_CHARS = NUMBER_CHARS  # _NUMBER_BYTES less the line ends
 _INT_LIMIT = 10**18  # the validating path accepts at most 18 digits
 _LINE_ENDS = b"\r\n"
 
@@ -164,7 +161,7 @@ def _scan_data_lines(data: bytes, data_start: int, delimiter: str) -> _Scan:
     exact count over the original bytes (deleting a field could join a ``\r`` with the next
     ``\n``).
     """
-    delete = _NUMBER_CHARS + delimiter.encode()
+    delete = NUMBER_CHARS + delimiter.encode()
     rest = data.translate(None, delete)[len(data[:data_start].translate(None, delete)):]
     numeric = not rest.translate(None, _LINE_ENDS)
     if b"\r" in rest:
@@ -592,5 +589,3 @@ def format_utc(stamp: datetime) -> str:
     stamp = stamp.astimezone(UTC)
     return stamp.strftime("%Y-%m-%dT%H:%M:%S.") + f"{stamp.microsecond // 1000:03d}Z"
 
-
-_read_bytes = read_file_bytes

@@ -30,16 +30,14 @@ from ofbe_data.core.errors import RawFormatError
 from ofbe_data.io.formats import register_format
 from ofbe_data.io.formats.common import (
     MAX_STEP_S,
-    _assemble,
     _Body,
     _clean_times,
-    _csv_body,
     _line_starts,
     _read_body,
-    _read_bytes,
     find_gaps,
-    fixed_point,
 )
+from ofbe_data.io.formats.filebytes import read_file_bytes
+from ofbe_data.io.formats.writing import _assemble, _csv_body, fixed_point
 from ofbe_data.io.gravity import G0
 from ofbe_data.io.manifest import WHITESPACE, CsvMapping, DeviceSpec
 from ofbe_data.io.recording import TEMPERATURE, ReadDiagnostics, Recording, SkippedLine
@@ -275,7 +273,7 @@ def read_generic_csv(path: str | Path, mapping: CsvMapping, device: str | None =
         valid data line), naming the file and line.
     """
     path = Path(path)
-    data = _read_bytes(path)
+    data = read_file_bytes(path)
     buf, line_of, keys, preamble = _normalise(path, data, mapping)
     wanted = {name: "float" for name in keys.values()}
     try:

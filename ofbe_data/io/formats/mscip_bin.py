@@ -42,9 +42,9 @@ from ofbe_data.io.formats.common import (
     _Body,
     _clean_times,
     _parse_utc,
-    _read_bytes,
     find_gaps,
 )
+from ofbe_data.io.formats.filebytes import read_file_bytes
 from ofbe_data.io.gravity import G0
 from ofbe_data.io.manifest import BinOptions, DeviceSpec
 from ofbe_data.io.recording import SKIP_NON_NUMERIC, ReadDiagnostics, Recording, SkippedLine
@@ -423,7 +423,7 @@ def read_mscip_bin(path: str | Path, sample_rate_hz: float | None = None, acc_un
     path = Path(path)
     if acc_unit not in ACC_UNITS:
         raise ValueError(f"acc_unit: expected one of {', '.join(ACC_UNITS)}, found {acc_unit!r}")
-    data = _read_bytes(path)
+    data = read_file_bytes(path)
     s = decode_mscip(data)
     bad = (f"{s.packets_bad_checksum} with a bad checksum, {s.packets_bad_layout} with a bad layout, "
            f"{s.packets_truncated} truncated")

@@ -16,19 +16,17 @@ from ofbe_data.io.formats.common import (
     MSCIP_GYRO,
     MSCIP_TEMP,
     MSCIP_TIME,
-    _assemble,
     _clean_times,
     _count_lines,
-    _csv_body,
     _decode,
     _line_start,
     _next_line,
     _parse_utc,
     _read_body,
-    _read_bytes,
     find_gaps,
-    fixed_point,
 )
+from ofbe_data.io.formats.filebytes import read_file_bytes
+from ofbe_data.io.formats.writing import _assemble, _csv_body, fixed_point
 from ofbe_data.io.gravity import G0
 from ofbe_data.io.recording import (
     TEMPERATURE,
@@ -56,7 +54,7 @@ def read_mscip_csv(path: str | Path, device: str | None = None) -> Recording:
         and temperature (°C) in ``extra`` when present.
     """
     path = Path(path)
-    data = _read_bytes(path)
+    data = read_file_bytes(path)
     col_offset = _line_start(data, MSCIP_TIME.encode())
     if col_offset < 0:
         raise RawFormatError(path, f"a column line starting with {MSCIP_TIME!r}", "none in the file")

@@ -17,20 +17,18 @@ from ofbe_data.io.formats.common import (
     MAX_STEP_S,
     OFBE_LOGGER_COLUMNS,
     WRAP_US,
-    LineHook,
-    _assemble,
     _clean_times,
     _count_lines,
-    _csv_body,
     _decode,
     _drop,
     _line_start,
     _next_line,
     _parse_utc,
     _read_body,
-    _read_bytes,
     find_gaps,
 )
+from ofbe_data.io.formats.filebytes import read_file_bytes
+from ofbe_data.io.formats.writing import LineHook, _assemble, _csv_body
 from ofbe_data.io.gravity import G0
 from ofbe_data.io.recording import (
     SKIP_OUT_OF_RANGE,
@@ -100,7 +98,7 @@ def read_ofbe_logger(path: str | Path, device: str | None = None) -> Recording:
         Missing header, header keys or columns, or no valid data line.
     """
     path = Path(path)
-    data = _read_bytes(path)
+    data = read_file_bytes(path)
     header, boot_lines, col_offset, col_line = _parse_logger_header(path, data)
     lsb = _header_number(path, header, "lsb_per_g", boot_lines + 1)
     range_g = _header_number(path, header, "range_g", boot_lines + 1)
