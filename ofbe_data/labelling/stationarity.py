@@ -76,14 +76,16 @@ def row_sum(x: np.ndarray) -> np.ndarray:
     return out
 
 
-def centred_sums(acc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``acc``'s column mean (:func:`column_mean`) and the running sums of ``acc − mean`` with a
-    leading row of zeros, (N + 1, 3): where :func:`moving_variance_norm` and the tap high-pass
+def centred_sums(acc: np.ndarray, mean: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``acc``'s column mean (:func:`column_mean`, or ``mean`` when the caller has it) and the
+    running sums of ``acc − mean`` with a leading row of zeros, (N + 1, 3): where
+    :func:`moving_variance_norm` and the tap high-pass
     (:func:`ofbe_data.labelling.sync.highpass`) both start over a whole recording, so one
     computation serves both, with the same bits."""
     x = np.asarray(acc, dtype=np.float64)
     c = np.empty((x.shape[0] + 1,) + x.shape[1:])
-    mean = column_mean(x, c[1:] if x.shape[0] else None)
+    if mean is None:
+        mean = column_mean(x, c[1:] if x.shape[0] else None)
     c[0] = 0.0
     np.cumsum(x - mean, axis=0, out=c[1:])
     return mean, c
@@ -113,14 +115,9 @@ def moving_variance_norm(acc: np.ndarray, window: int, mean: np.ndarray | None =
     n, k = x.shape
     # running sums with a leading row of zeros, written in place into one buffer each (the
     # operations, and so the bits, are those of the textbook expressions in the comments)
-    if sums is not None and mean is not None:
-        c1, x = sums, x - mean
-    else:
-        c1 = np.empty((n + 1, k))
-        c1[0] = 0.0
-        # centred: keeps the cumulative sums well conditioned
-        x = x - (column_mean(x, c1[1:] if k == 3 else None) if mean is None else mean)
-        np.cumsum(x, axis=0, out=c1[1:])
+    if sums is None or mean is None:  # centred: keeps the cumulative sums well conditioned
+        mean, sums = centred_sums(x, mean)
+    c1, x = sums, x - mean
     c2 = np.empty((n + 1, k))
     c2[0] = 0.0
     np.multiply(x, x, out=x)

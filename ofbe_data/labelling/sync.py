@@ -25,7 +25,7 @@ import numpy as np
 
 from ofbe_data.core.geometry import mul3
 from ofbe_data.io.recording import Recording
-from ofbe_data.labelling.stationarity import column_mean, row_sum
+from ofbe_data.labelling.stationarity import centred_sums, row_sum
 
 
 @dataclass(frozen=True)
@@ -143,19 +143,13 @@ def highpass(t: np.ndarray, acc: np.ndarray, highpass_s: float,
     """
     n = acc.shape[0]
     acc = np.asarray(acc, dtype=np.float64)
-    if centred is not None:
-        x, c = acc - centred[0], centred[1]
-    else:
-        c = np.empty((n + 1,) + acc.shape[1:])
-        x = acc - column_mean(acc, c[1:] if n else None)
+    mean, c = centred_sums(acc) if centred is None else centred
+    x = acc - mean
     if n < 3:
         return x
     dt = float(np.median(np.diff(t))) if median_step is None else median_step
     w = int(max(3, round(highpass_s / dt)) | 1)
     w = min(w, n if n % 2 else n - 1)
-    if centred is None:
-        c[0] = 0.0
-        np.cumsum(x, axis=0, out=c[1:])
     half = w // 2
     # sample i takes the mean of x over lo … hi − 1, hi = min(i + half + 1, n) and
     # lo = max(i − half, 0), that is (c[hi] − c[lo]) / (hi − lo): the operations of a gather
