@@ -62,7 +62,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     # TensorFlow is imported only now: --help answers at once, and its start-up lines stay quiet
     quiet_libraries(args.verbose)
-    from ofbe_model.ofbenet.training import _Usage, plan_runs, read_params, read_seed_count, train_many
+    from ofbe_model.ofbenet.training import _Usage, read_params, read_seed_count, train_many
 
     try:
         params = read_params(args.params, args.max_epochs)
@@ -79,16 +79,15 @@ def main(argv: Sequence[str] | None = None) -> int:
             return fail(PROG, f"{dataset}: expected a dataset folder, found no such folder", 2)
     t0 = time.perf_counter()
     try:
-        runs = plan_runs(datasets, args.protocol)
-        written = train_many(runs, args.out, params, args.folds, progress=not args.quiet,
+        written = train_many(datasets, args.protocol, args.out, params, args.folds, progress=not args.quiet,
                              seeds=seeds, jobs=args.jobs, scheduler=args.scheduler)
     except _Usage as exc:
         return fail(PROG, str(exc), 2)
     except (OfbeError, OSError) as exc:
         return fail(PROG, str(exc), 1)
     if not args.quiet:
-        what = ", ".join(f"{p} on {d}" for d, p in runs)
-        print(f"{PROG}: trained {what} in {time.perf_counter() - t0:.0f} s; summaries: "
+        print(f"{PROG}: trained {', '.join(args.protocol)} on {', '.join(map(str, datasets))} in "
+              f"{time.perf_counter() - t0:.0f} s; summaries: "
               f"{', '.join(map(str, written))}", file=sys.stderr)
     return 0
 

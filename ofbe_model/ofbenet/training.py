@@ -60,7 +60,6 @@ from ofbe_data.core.errors import ConfigError
 from ofbe_data.core.figures import new_figure, save_png
 from ofbe_data.core.parallel import map_progress
 from ofbe_data.dataset.reader import load_dataset
-from ofbe_data.dataset.store import fold_column
 from ofbe_data.io.typedconfig import from_plain, read_section
 from ofbe_model.benchmark.evaluation import Split, protocol_splits
 from ofbe_model.ofbenet.network import OFBENet
@@ -303,20 +302,26 @@ def _fit_task(task: FitTask) -> tuple[dict[str, Any], dict[str, list[float]]]:
     return train_fold(ds.X, ds.y, ds.meta, split, task.params, Path(task.folder))
 
 
-def plan_runs(datasets: Sequence[str | Path], protocols: Sequence[str]) -> list[tuple[str | Path, str]]:
-    """(dataset, protocol) runs: each dataset under each of ``protocols`` it has, in the order given.
+def plan_runs(datasets: Mapping[str, Any], protocols: Sequence[str]) -> list[tuple[str, str]]:
+    """(dataset, protocol) runs: each dataset under each of ``protocols`` it has (a
+    ``fold_<protocol>`` column), in the order given.
+
+    Parameters
+    ----------
+    datasets
+        Dataset folder → its loaded dataset (:func:`~ofbe_data.dataset.reader.load_dataset`).
+    protocols
+        Protocol names.
 
     Raises
     ------
     _Usage
         A protocol that none of the datasets has, or a dataset that has none of them.
-    OfbeError
-        A dataset that cannot be read.
     """
-    runs: list[tuple[str | Path, str]] = []
+    runs: list[tuple[str, str]] = []
     used: set[str] = set()
-    for dataset in datasets:
-        have = [c.removeprefix("fold_") for c in load_dataset(dataset).meta.columns if c.startswith("fold_")]
+    for dataset, ds in datasets.items():
+        have = [c.removeprefix("fold_") for c in ds.meta.columns if c.startswith("fold_")]
         mine = [p for p in protocols if p in have]
         if not mine:
             raise _Usage(f"--protocol: expected one of the protocols of {dataset} "
@@ -334,21 +339,14 @@ def train(dataset: str | Path, protocol: str, out: str | Path, params: OFBENetPa
           folds: Sequence[int] | None = None, progress: bool = True, seeds: int = DEFAULT_SEEDS,
           jobs: int = 1, scheduler: str = "processes") -> list[Path]:
     """Train every (selected) fold of every benchmark dataset of one windowed dataset under one
-    protocol: :func:`train_many` with one run."""
-    return train_many([(dataset, protocol)], out, params, folds, progress, seeds, jobs, scheduler)
+    protocol: :func:`train_many` of one dataset and one protocol."""
+    return train_many([dataset], [protocol], out, params, folds, progress, seeds, jobs, scheduler)
 
 
-def _run_splits(dataset: str | Path, protocol: str, folds: Sequence[int] | None
-                ) -> tuple[Any, list[Split]]:
-    """The loaded dataset and the selected folds of one protocol (raises :class:`_Usage`)."""
-    ds = load_dataset(dataset)
-    meta = ds.meta
-    col = fold_column(protocol)
-    if col not in meta.columns:
-        have = sorted(c.removeprefix("fold_") for c in meta.columns if c.startswith("fold_"))
-        raise _Usage(f"--protocol: expected one of the protocols of {dataset} ({', '.join(have)}), "
-                     f"found {protocol!r}")
-    splits = list(protocol_splits(meta, str(ds.info["kind"]), protocol))
+def _run_splits(ds: Any, protocol: str, folds: Sequence[int] | None) -> list[Split]:
+    """The selected folds of one protocol of a loaded dataset that has it (raises
+    :class:`_Usage` for an unknown fold)."""
+    splits = list(protocol_splits(ds.meta, str(ds.info["kind"]), protocol))
     available = sorted({s.fold for s in splits})
     if folds is not None:
         unknown = sorted(set(folds) - set(available))
@@ -356,26 +354,27 @@ def _run_splits(dataset: str | Path, protocol: str, folds: Sequence[int] | None
             raise _Usage(f"--folds: expected folds of {protocol} ({', '.join(map(str, available))}), "
                          f"found {', '.join(map(str, unknown))}")
         splits = [s for s in splits if s.fold in set(folds)]
-    return ds, splits
+    return splits
 
 
-def train_many(runs: Sequence[tuple[str | Path, str]], out: str | Path, params: OFBENetParams,
-               folds: Sequence[int] | None = None, progress: bool = True, seeds: int = DEFAULT_SEEDS,
-               jobs: int = 1, scheduler: str = "processes") -> list[Path]:
-    """Train every (selected) fold of every benchmark dataset of several (dataset, protocol)
-    runs, all fits in one pool.
+def train_many(datasets: Sequence[str | Path], protocols: Sequence[str], out: str | Path,
+               params: OFBENetParams, folds: Sequence[int] | None = None, progress: bool = True,
+               seeds: int = DEFAULT_SEEDS, jobs: int = 1, scheduler: str = "processes") -> list[Path]:
+    """Train every (selected) fold of every benchmark dataset of each dataset under each of
+    ``protocols`` it has (:func:`plan_runs`), all fits in one pool.
 
-    The fits of every run are one list of tasks, the largest training sets first, so that
-    ``jobs`` workers stay busy to the end instead of waiting at the end of each run (longest
-    first is the classic greedy bound for scheduling independent jobs). A fit's model does
-    not depend on which worker trains it or when: the outputs are those of training each run
-    alone.
+    The fits of every (dataset, protocol) run are one list of tasks, the largest training sets
+    first, so that ``jobs`` workers stay busy to the end instead of waiting at the end of each
+    run (longest first is the classic greedy bound for scheduling independent jobs). A fit's
+    model does not depend on which worker trains it or when: the outputs are those of
+    training each run alone.
 
     Parameters
     ----------
-    runs
-        (dataset folder ``processed/datasets/<name>``, protocol) pairs; the protocol must be
-        one of the dataset's (a ``fold_<protocol>`` column).
+    datasets
+        Dataset folders (``processed/datasets/<name>``), each loaded once here.
+    protocols
+        Protocols (``fold_<protocol>`` columns); each dataset is trained under those it has.
     out
         Models folder.
     params
@@ -403,38 +402,39 @@ def train_many(runs: Sequence[tuple[str | Path, str]], out: str | Path, params: 
     Raises
     ------
     _Usage
-        Unknown protocol or fold.
+        A protocol none of the datasets has, a dataset with none of them, or an unknown fold.
     OfbeError
         A bad dataset (:class:`~ofbe_data.dataset.store.DatasetError`), a failed fit
         (:class:`~ofbe_model.estimators.base.EstimatorError`), or a fit whose worker process
         died (:class:`~ofbe_data.core.parallel.TaskError`); the other fits are finished first.
     """
     out = Path(out)
-    loaded = [(str(dataset), protocol, *_run_splits(dataset, protocol, folds))
-              for dataset, protocol in runs]
-    tasks: list[tuple[int, FitTask]] = []
-    for dataset, protocol, _, splits in loaded:
+    loaded = {str(dataset): load_dataset(dataset) for dataset in datasets}
+    runs = [(dataset, protocol, _run_splits(loaded[dataset], protocol, folds))
+            for dataset, protocol in plan_runs(loaded, protocols)]
+    sized: list[tuple[int, FitTask]] = []
+    for dataset, protocol, splits in runs:
         for split in splits:
             folder = out / dataset_dirname(split.dataset) / protocol
             folder.mkdir(parents=True, exist_ok=True)
-            tasks += [(int(split.train.size), FitTask(dataset, protocol, split.dataset, split.fold,
+            sized += [(int(split.train.size), FitTask(dataset, protocol, split.dataset, split.fold,
                                                       dataclasses.replace(params, seed=params.seed + i),
                                                       str(folder)))
                       for i in range(seeds)]
-    order = sorted(range(len(tasks)), key=lambda i: -tasks[i][0])  # stable: ties keep their order
-    ordered = [tasks[i][1] for i in order]
-    desc = f"{PROG} {loaded[0][1]}" if len(loaded) == 1 else f"{PROG} {len(loaded)} runs"
-    results = map_progress(_fit_task, ordered, jobs=jobs, desc=desc, unit="fit", progress=progress,
+    tasks = [task for _, task in sorted(sized, key=lambda pair: -pair[0])]  # stable: ties keep their order
+    desc = f"{PROG} {runs[0][1]}" if len(runs) == 1 else f"{PROG} {len(runs)} runs"
+    results = map_progress(_fit_task, tasks, jobs=jobs, desc=desc, unit="fit", progress=progress,
                            worker_env=WORKER_ENV, scheduler=scheduler,
                            postfix=lambda r: (f"fold {r[0]['fold']} seed {r[0]['seed']}: "
                                               f"{r[0]['epochs_run']} epochs"),
                            name=lambda t: f"{t.name} {t.protocol} fold {t.fold} seed {t.params.seed}")
-    done = {(t.dataset, t.protocol, t.name, t.fold, t.params.seed): r
-            for t, r in zip(ordered, results, strict=True)}
+    done: dict[tuple[str, str], dict[tuple[str, int, int], Any]] = {}
+    for t, r in zip(tasks, results, strict=True):
+        done.setdefault((t.dataset, t.protocol), {})[t.name, t.fold, t.params.seed] = r
     written: list[Path] = []
-    for dataset, protocol, ds, splits in loaded:
-        ran = {(n, f, seed): r for (d, p, n, f, seed), r in done.items() if d == dataset and p == protocol}
-        written += _write_summaries(dataset, protocol, ds, splits, ran, out, params)
+    for dataset, protocol, splits in runs:
+        written += _write_summaries(dataset, protocol, loaded[dataset], splits,
+                                    done.get((dataset, protocol), {}), out, params)
     return written
 
 
