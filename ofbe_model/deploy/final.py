@@ -31,7 +31,7 @@ from ofbe_data.core.atomic import write_bytes_atomic
 from ofbe_data.core.parallel import map_progress
 from ofbe_data.dataset.reader import load_dataset
 from ofbe_model.estimators.priors import GravityPrior
-from ofbe_model.ofbenet.params import OFBENetParams
+from ofbe_model.ofbenet.params import WORKER_ENV, OFBENetParams
 
 CARD_FORMAT = "ofbe-model-card/1"
 OFBENET_NAME = "final.keras"
@@ -40,7 +40,6 @@ CARD_JSON = "model_card.json"
 CARD_MD = "MODEL_CARD.md"
 #: Benchmark method names of the two deployed estimators.
 BENCHMARK_METHODS = {"ofbenet": "ofbenet", "gravity-prior": "gravity-prior-direction"}
-WORKER_ENV = {"TF_NUM_INTRAOP_THREADS": "1", "TF_NUM_INTEROP_THREADS": "1", "TF_CPP_MIN_LOG_LEVEL": "3"}
 
 LIMITS = (
     "One stationary window fixes only the bias component along gravity (‖mean‖ − g); the two "

@@ -63,7 +63,7 @@ from ofbe_data.dataset.reader import load_dataset
 from ofbe_data.io.typedconfig import from_plain, read_section
 from ofbe_model.benchmark.evaluation import Split, protocol_splits
 from ofbe_model.ofbenet.network import OFBENet
-from ofbe_model.ofbenet.params import OFBENetParams
+from ofbe_model.ofbenet.params import WORKER_ENV, OFBENetParams
 
 PROG = "ofbe-train"
 #: ``format`` of ``training.json``.
@@ -265,12 +265,6 @@ def _history_from_csv(path: Path) -> dict[str, list[float]]:
         return {}
     return {c: frame[c].tolist() for c in frame.columns if c != "epoch"}
 
-
-WORKER_ENV = {"TF_NUM_INTRAOP_THREADS": "1", "TF_NUM_INTEROP_THREADS": "1", "TF_CPP_MIN_LOG_LEVEL": "3"}
-"""Every fit runs in a fresh worker process with one TensorFlow thread. OFBENet's small batches
-do not gain from a second thread (a fit on two cores took 18.7 s, on one 16.1 s), so two
-single-threaded workers train two fits at once; and since the thread count is the same
-whatever ``--jobs``, so are the weights."""
 
 _CACHE: dict[str, Any] = {"datasets": {}, "splits": {}}
 """A worker's loaded datasets (by path) and protocol splits (by path and protocol)."""
