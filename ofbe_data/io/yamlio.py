@@ -80,6 +80,36 @@ def _check_size(root: yaml.Node) -> None:
                               node.start_mark.line + 1)
 
 
+def _too_deep_at(text: str) -> int | None:
+    """Line where the nesting first goes past :data:`MAX_DEPTH`, or None.
+
+    Walks the event stream only as far as it parses, so it answers for a document that the
+    parser itself refuses: PyYAML and libyaml have nesting limits of their own (different by
+    version, with their own wording), and a document too deep for ours is refused with our
+    message whichever of them stops first. The pure-Python parser is used: libyaml's scanner
+    reads far ahead in flow context and can stop on its own limit before the first events.
+    """
+    depth = 0
+    try:
+        loader = yaml.SafeLoader(text)
+    except yaml.YAMLError:  # the reader refuses the text itself (a control character)
+        return None
+    try:
+        while loader.check_event():
+            event = loader.get_event()
+            if isinstance(event, (yaml.SequenceStartEvent, yaml.MappingStartEvent)):
+                depth += 1
+                if depth > MAX_DEPTH:
+                    return event.start_mark.line + 1
+            elif isinstance(event, (yaml.SequenceEndEvent, yaml.MappingEndEvent)):
+                depth -= 1
+    except (yaml.YAMLError, RecursionError):
+        return None
+    finally:
+        loader.dispose()
+    return None
+
+
 def _check_duplicates(node: yaml.Node, path: list[str | int]) -> None:
     if isinstance(node, yaml.MappingNode):
         seen: dict[str, int] = {}
@@ -114,6 +144,30 @@ _Loader.add_implicit_resolver(
 _LOADER = _Loader
 
 
+def _parse_problem(exc: yaml.YAMLError | RecursionError, text: str) -> YamlProblem:
+    """The :class:`YamlProblem` for a document the parser refused, with its line.
+
+    Nesting beyond :data:`MAX_DEPTH` is named as such whether the parser stopped on our limit's
+    side or on one of its own (PyYAML recurses; newer libyaml has a depth limit with its own
+    wording), so the message does not depend on the installed PyYAML.
+    """
+    deep_line = _too_deep_at(text)
+    if deep_line is not None or isinstance(exc, RecursionError):
+        return YamlProblem("<document>", f"nesting at most {MAX_DEPTH} levels deep", "deeper nesting",
+                           deep_line)
+    if isinstance(exc, yaml.MarkedYAMLError):
+        mark = exc.problem_mark or exc.context_mark
+        line = mark.line + 1 if mark is not None else None
+        return YamlProblem("<document>", "valid YAML", exc.problem or exc.context or "a syntax error", line)
+    # e.g. a control character: a ReaderError has no mark
+    position = getattr(exc, "position", None)
+    line = text[:position].count("\n") + 1 if isinstance(position, int) else None
+    reason = getattr(exc, "reason", None) or str(exc).splitlines()[0]
+    char = getattr(exc, "character", None)
+    found = f"{reason} (character {char!r})" if char is not None else reason
+    return YamlProblem("<document>", "YAML text", found, line)
+
+
 class YamlDocument:
     """A parsed YAML document that remembers where each field sits.
 
@@ -137,23 +191,13 @@ class YamlDocument:
                 _check_size(self._root)
                 _check_duplicates(self._root, [])
             self.data: Any = loader.construct_document(self._root) if self._root is not None else None
-        except yaml.MarkedYAMLError as exc:
-            mark = exc.problem_mark or exc.context_mark
-            line = mark.line + 1 if mark is not None else None
-            problem = exc.problem or exc.context or "a syntax error"
-            raise YamlProblem("<document>", "valid YAML", problem, line) from None
-        except yaml.YAMLError as exc:  # e.g. a control character: a ReaderError has no mark
-            position = getattr(exc, "position", None)
-            line = text[:position].count("\n") + 1 if isinstance(position, int) else None
-            reason = getattr(exc, "reason", None) or str(exc).splitlines()[0]
-            char = getattr(exc, "character", None)
-            found = f"{reason} (character {char!r})" if char is not None else reason
-            raise YamlProblem("<document>", "YAML text", found, line) from None
-        except RecursionError:
-            raise YamlProblem("<document>", f"nesting at most {MAX_DEPTH} levels deep", "deeper nesting",
-                              None) from None
+        except (yaml.YAMLError, RecursionError) as exc:
+            problem = _parse_problem(exc, text)
+        else:
+            return
         finally:
             loader.dispose()
+        raise problem from None
 
     def line_of(self, path: FieldPath) -> int | None:
         """1-based line of the field at ``path`` (or of its deepest existing parent)."""
