@@ -63,7 +63,7 @@ def test_readme_and_ci_install_the_same_way() -> None:
     for command in (README_TEST, README_MAIN, MAKE_VENV):
         assert command in readme, f"README.md lacks the command {command!r}"
     code = [line.strip() for line in ci.splitlines() if line.strip() and not line.lstrip().startswith("#")]
-    assert "python -m venv .venv || { echo \"ci: could not create the virtual environment\" >&2; exit 1; }" in code
+    assert any(line.startswith("python -m venv .venv ||") for line in code), ".ci/run makes no fresh venv"
     assert ". .venv/bin/activate" in code
     install, test = README_TEST.split(" && ")
     assert any(line.startswith(install + " ||") for line in code), f".ci/run does not run {install!r}"

@@ -1,12 +1,13 @@
 """Calibration results in the files other tools load, each convention converted once.
 
-ofbe: ``f = A · u · g + b`` (output-referred, m/s², A = diag(scale)), corrected by
-``a = A⁻¹ (f − b)`` (:func:`ofbe_correct`). Per tool (derivations in docs/exports.md):
+ofbe: ``f = A · u · g + b`` (output-referred, m/s², A the fitted map or the identity), corrected
+by ``a = A⁻¹ (f − b)`` (:func:`ofbe_correct`). Per tool (derivations in docs/exports.md):
 
-- imucal (Ferraris): ``a = R_a⁻¹ K_a⁻¹ (f − b_a)`` → ``K_a = diag(scale)``, ``R_a = I``,
-  ``b_a = b`` in the raw unit m/s^2 (:func:`imucal_accelerometer`);
-- GGIR (``backup.cal.coef``): ``a_g = (f_g + offset) · scale`` in g →
-  ``offset = −b / g0``, ``scale = 1 / scale_ofbe`` (:func:`ggir_coefficients`);
+- imucal (Ferraris): ``a = R_a⁻¹ K_a⁻¹ (f − b_a)`` → ``K_a = diag(‖A_i,:‖)``,
+  ``R_a = K_a⁻¹ A`` (unit rows), ``b_a = b`` in the raw unit m/s^2 (:func:`imucal_accelerometer`);
+- GGIR (``backup.cal.coef``): ``a_g = (f_g + offset) · scale`` in g, per axis only →
+  ``offset = −b / g0``, ``scale = 1 / ‖A_i,:‖`` (:func:`ggir_coefficients`; GGIR has no
+  cross-axis terms, so a non-orthogonality A carries is not applied there);
 - ROS: the bias to subtract, m/s², and the ``linear_acceleration_covariance`` diagonal std²
   (:func:`ros_bias_covariance`);
 - Kalibr: noise density and random walk only (no bias), see
@@ -33,6 +34,7 @@ from ofbe_data import __version__
 from ofbe_data.calibration.noise import NoiseEstimate
 from ofbe_data.calibration.results import ZERO_G_OFFSET, CalibrationResult
 from ofbe_data.io.gravity import G0
+from ofbe_data.labelling.conventions import imucal_from_matrix
 
 JSON_FORMAT = "ofbe-calibration/1"
 """``format`` of the ofbe calibration JSON."""
@@ -56,36 +58,38 @@ DEFAULT_ROSTOPIC = "/imu0"
 # ----------------------------------------------------------------------------- conventions
 
 
-def ofbe_correct(raw: np.ndarray, bias: Sequence[float], scale: Sequence[float] = (1.0, 1.0, 1.0)
-                 ) -> np.ndarray:
-    """ofbe's correction of (N, 3) readings in m/s²: ``a = A⁻¹ (f − b)``, A = diag(scale)."""
-    return (np.asarray(raw, dtype=np.float64) - np.asarray(bias, dtype=np.float64)) / np.asarray(
-        scale, dtype=np.float64)
+def ofbe_correct(raw: np.ndarray, bias: Sequence[float], matrix: Any = None) -> np.ndarray:
+    """ofbe's correction of (N, 3) readings in m/s²: ``a = A⁻¹ (f − b)`` (A (3, 3), default I)."""
+    a = np.eye(3) if matrix is None else np.asarray(matrix, dtype=np.float64)
+    return np.linalg.solve(a, (np.asarray(raw, dtype=np.float64) - np.asarray(bias, dtype=np.float64)).T).T
 
 
-def imucal_accelerometer(bias: Sequence[float], scale: Sequence[float] = (1.0, 1.0, 1.0)
+def imucal_accelerometer(bias: Sequence[float], matrix: Any = None
                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(K_a, R_a, b_a) of imucal's Ferraris model from ofbe's b and scale.
+    """(K_a, R_a, b_a) of imucal's Ferraris model from ofbe's b and A.
 
     imucal corrects ``a = R_a⁻¹ K_a⁻¹ (f − b_a)`` (``FerrarisCalibrationInfo._calibrate_acc``):
     the bias is subtracted in the raw unit before scaling, exactly ofbe's ``A⁻¹ (f − b)``
-    with ``K_a R_a = A``. ofbe's A is diagonal, so ``K_a = diag(scale)``, ``R_a = I``, and
-    ``b_a = b`` (m/s², the file's ``from_acc_unit``).
+    with ``K_a R_a = A``; imucal's own Ferraris fit gives R_a unit rows, so K_a holds the row
+    norms of A (:func:`ofbe_data.labelling.conventions.imucal_from_matrix`) and ``b_a = b``
+    (m/s², the file's ``from_acc_unit``).
     """
-    return np.diag(np.asarray(scale, dtype=np.float64)), np.eye(3), np.asarray(bias, dtype=np.float64)
+    k_a, r_a = imucal_from_matrix(np.eye(3) if matrix is None else matrix)
+    return k_a, r_a, np.asarray(bias, dtype=np.float64)
 
 
-def ggir_coefficients(bias: Sequence[float], scale: Sequence[float] = (1.0, 1.0, 1.0), g0: float = G0
+def ggir_coefficients(bias: Sequence[float], matrix: Any = None, g0: float = G0
                       ) -> tuple[np.ndarray, np.ndarray]:
-    """(scale, offset) of GGIR's calibration from ofbe's b (m/s²) and scale.
+    """(scale, offset) of GGIR's calibration from ofbe's b (m/s²) and A.
 
     GGIR applies ``scale(x, center = -offset, scale = 1/scale)``, i.e.
     ``a_g = (f_g + offset) · scale`` with readings in g (g.getmeta, g.calibrate). With
-    ``f_g = f / g0``: ``a / g0 = (f − b) / (g0 · s)`` holds for ``offset = −b / g0`` (g, the
-    opposite sign of ofbe's b) and ``scale = 1 / s``.
+    ``f_g = f / g0`` and a per-axis gain s_i = ‖A_i,:‖: ``a / g0 = (f − b) / (g0 · s)`` holds
+    for ``offset = −b / g0`` (g, the opposite sign of ofbe's b) and ``scale = 1 / s``. GGIR
+    has no cross-axis terms; they are left out.
     """
-    s = np.asarray(scale, dtype=np.float64)
-    return 1.0 / s, -np.asarray(bias, dtype=np.float64) / g0
+    k_a, _ = imucal_from_matrix(np.eye(3) if matrix is None else matrix)
+    return 1.0 / k_a.diagonal(), -np.asarray(bias, dtype=np.float64) / g0
 
 
 def ggir_apply(raw_g: np.ndarray, scale: Sequence[float], offset: Sequence[float]) -> np.ndarray:
@@ -160,11 +164,11 @@ def imucal_file(r: CalibrationResult, written: datetime) -> bytes:
     Exactly the fields imucal's loader passes to the class (``load_calibration_info`` fails on
     others); what ofbe knows beyond K_a, R_a, b_a is said in ``comment``.
     """
-    k_a, r_a, b_a = imucal_accelerometer(r.bias, r.scale)
+    k_a, r_a, b_a = imucal_accelerometer(r.bias, r.matrix)
     comment = (f"ofbe {__version__} export, {_utc(written)}: device {r.device}, power cycle "
                f"{r.power_cycle if r.power_cycle is not None else 'unknown'}. bias_kind: {r.bias_kind}. "
-               f"b_a is {_kind_words(r)}, in m/s^2, subtracted before scaling. K_a: {r.scale_note}; "
-               "R_a identity (ofbe fits no misalignment of the sensor's own axes). Gyroscope: ofbe has "
+               f"b_a is {_kind_words(r)}, in m/s^2, subtracted before scaling. K_a R_a = A: {r.scale_note}"
+               f"{'' if r.scale_known else '; K_a and R_a identity'}. Gyroscope: ofbe has "
                "no gyroscope data; K_g and R_g are identity, K_ga and b_g zero (the gyroscope passes "
                "unchanged). "
                f"Source: {_sources(r)}. Time {_utc(r.time_utc)} ({r.time_source}).")
@@ -222,8 +226,9 @@ def ros_file(r: CalibrationResult, written: datetime, frame_id: str = DEFAULT_FR
     if not r.scale_known:
         lines.append(f"# {r.scale_note}; ROS corrects the bias only")
     else:
-        lines.append("# " + r.scale_note + ": " + ", ".join(f"{s:.10g}" for s in r.scale)
-                     + "; a bias subtraction does not apply it: divide (f - b) by it")
+        lines.append("# " + r.scale_note + ": A = " + "; ".join(", ".join(f"{v:.10g}" for v in row)
+                                                            for row in r.matrix)
+                     + " (rows); a bias subtraction does not apply it: a = A^-1 (f - b)")
     lines += [f"device: {json.dumps(r.device)}",
               f"power_cycle: {'null' if r.power_cycle is None else r.power_cycle}",
               f"frame_id: {json.dumps(frame_id)}",
@@ -241,7 +246,7 @@ def ggir_file(r: CalibrationResult, written: datetime, g0: float = G0) -> bytes:
     GGIR looks a file's coefficients up by its ``filename``; rows for other recordings of
     the same device and power cycle are copies with their file name.
     """
-    scale, offset = ggir_coefficients(r.bias, r.scale, g0)
+    scale, offset = ggir_coefficients(r.bias, r.matrix, g0)
     qc = (f"ofbe {__version__} export {_utc(written)}: bias_kind {r.bias_kind}, {_kind_words(r)}; "
           f"offset = -b/g0 (g0 = {g0} m/s^2); {r.scale_note}; no temperature model")
     buf = io.StringIO()
@@ -262,7 +267,9 @@ def json_document(r: CalibrationResult, written: datetime) -> dict[str, Any]:
         "bias_m_s2": list(r.bias), "bias_std_m_s2": None if r.std is None else list(r.std),
         "bias_kind": r.bias_kind,
         "convention": "f = A*u*g + b (output-referred, m/s^2, sensor frame); correct with a = A^-1 (f - b)",
-        "scale": list(r.scale), "scale_known": r.scale_known, "method": r.method, "model": r.model,
+        "bias_se_m_s2": None if r.bias_se is None else list(r.bias_se),
+        "A": [list(row) for row in r.matrix], "scale": list(r.scale), "scale_known": r.scale_known,
+        "scale_note": r.scale_note, "method": r.method, "model": r.model,
         "n_rows": r.n_rows, "g_local_m_s2": r.g_local, "fs_hz": r.fs_hz, "temperature_c": r.temperature_c,
         "recordings": list(r.recordings),
         "source": {"files": [s.to_dict() for s in r.sources]},

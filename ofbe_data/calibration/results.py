@@ -5,7 +5,8 @@ ofbe's sensor model is output-referred, in m/s² (sensor-model.md):
 
     f = A · u · g + b,    so the correction is    a = A⁻¹ (f − b),
 
-with b the zero-g offset and A = diag(scale) where a fit determined a scale (identity
+with b the zero-g offset and A the map a fit determined (the ``a_*`` label columns: diagonal for
+a ``scale-offset`` fit, triangular for ``full``, the full 3×3 of a campaign fit; the identity
 otherwise). What b a result carries is said by :attr:`CalibrationResult.bias_kind`:
 
 - ``zero-g-offset``: the offset b of the campaign fit or of the multi-position fit
@@ -35,6 +36,7 @@ import numpy as np
 import pandas as pd
 
 from ofbe_data.core.errors import OfbeError
+from ofbe_data.labelling.conventions import MATRIX_COLUMNS, imucal_from_matrix
 from ofbe_data.labelling.labels import sha256_file
 from ofbe_data.labelling.store import read_labels, read_provenance
 
@@ -115,11 +117,15 @@ class CalibrationResult:
     method
         Label method(s) or the predicting method.
     scale
-        Diagonal of A (dimensionless); ones when ``scale_known`` is False.
+        Each axis' gain ‖A_i,:‖ (dimensionless, imucal's K_a); ones when ``scale_known`` is False.
     scale_known
-        Whether the source carried a fitted scale (else A = I is assumed).
+        Whether the source carried a fitted map A (else A = I is assumed).
     scale_note
-        Where the scale came from, or why it is the identity.
+        Where A came from, or why it is the identity.
+    matrix
+        A, row-major (3 × 3); the identity when ``scale_known`` is False.
+    bias_se
+        Standard error of ``bias`` per axis, m/s², when the fit gave one.
     g_local
         Local gravity, m/s².
     fs_hz
@@ -167,6 +173,8 @@ class CalibrationResult:
     time_utc: datetime | None = None
     time_source: str = ""
     raw_files: tuple[str, ...] = ()
+    matrix: tuple[tuple[float, float, float], ...] = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+    bias_se: tuple[float, float, float] | None = None
 
     @property
     def what(self) -> str:
@@ -259,19 +267,30 @@ def _shared(values: np.ndarray, tolerance: float, what: str, where: str) -> np.n
     return values[0]
 
 
-def _scale(rows: pd.DataFrame, kind: str, where: str) -> tuple[tuple[float, float, float], bool, str]:
-    """(scale, known, note): the fitted diagonal scale where the rows' fit determined one."""
-    scales = _column(rows, ("scale_x", "scale_y", "scale_z"))
+MAP_MODELS = frozenset({"scale-offset", "full", "campaign", "scale-offset+temperature", "full+temperature"})
+"""``fit_model`` values whose rows carry a fitted map A."""
+
+
+def _map(rows: pd.DataFrame, kind: str, where: str) -> tuple[np.ndarray, bool, str]:
+    """(A (3, 3), known, note): the fitted map where the rows' fit determined one, else I."""
     models = {str(m) for m in rows["fit_model"]} if "fit_model" in rows.columns else set()
-    if kind != ZERO_G_OFFSET or not np.all(np.isfinite(scales)):
-        return (1.0, 1.0, 1.0), False, "scale identity: the labels carry no scale"
-    if models and models != {"scale-offset"}:
-        return (1.0, 1.0, 1.0), False, (f"scale identity: the {'/'.join(sorted(models))} fit determined no "
-                                        "scale (too few distinct poses)")
-    scale = _vec(_shared(scales, SCALE_AGREEMENT, "scale", where))
-    if not all(v > 0 for v in scale):
-        raise CalibrationSourceError(f"{where}: expected positive scale_x/y/z, found {scale}")
-    return scale, True, "scale from the multi-position scale-offset fit (A = diag(scale))"
+    identity = np.eye(3)
+    if kind != ZERO_G_OFFSET:
+        return identity, False, "A identity: an apparent bias carries no map"
+    entries = _column(rows, MATRIX_COLUMNS)
+    if not np.all(np.isfinite(entries)):
+        scales = _column(rows, ("scale_x", "scale_y", "scale_z"))
+        if models == {"scale-offset"} and np.all(np.isfinite(scales)):  # labels from before the a_* columns
+            entries = np.stack([np.diag(row).ravel() for row in scales])
+        else:
+            fitted = "/".join(sorted(models)) or "label"
+            return identity, False, f"A identity: the {fitted} fit determined no map (too few distinct poses)"
+    matrix = _shared(entries, SCALE_AGREEMENT, "map A", where).reshape(3, 3)
+    if not np.linalg.det(matrix) > 0:
+        raise CalibrationSourceError(f"{where}: expected a map A with a positive determinant, found "
+                                     f"{matrix.tolist()}")
+    model = "/".join(sorted(models))
+    return matrix, True, f"A from the {model} fit (f = A*a + b; scale = row norms of A)"
 
 
 def _group_result(device: str, pc: int, rows: pd.DataFrame, files: list[Path], hashes: dict[Path, str]
@@ -288,7 +307,10 @@ def _group_result(device: str, pc: int, rows: pd.DataFrame, files: list[Path], h
             raise CalibrationSourceError(f"{where}: expected finite bias_x/y/z, found a missing value")
         bias, kind = apparent.mean(axis=0), APPARENT
         std = _vec(apparent.std(axis=0, ddof=1)) if len(rows) > 1 else None
-    scale, scale_known, scale_note = _scale(rows, kind, where)
+    matrix, scale_known, scale_note = _map(rows, kind, where)
+    scale = _vec(imucal_from_matrix(matrix)[0].diagonal())
+    ses = _column(rows, ("offset_x_se", "offset_y_se", "offset_z_se"))
+    bias_se = _vec(ses[0]) if kind == ZERO_G_OFFSET and np.all(np.isfinite(ses)) else None
     temps = _column(rows, ("temperature_c",))[:, 0]
     temps = temps[np.isfinite(temps)]
     fs = _column(rows, ("fs_hz",))[:, 0]
@@ -308,7 +330,8 @@ def _group_result(device: str, pc: int, rows: pd.DataFrame, files: list[Path], h
         sources=tuple(SourceFile(str(files[i]), hashes[files[i]]) for i in used),
         recordings=tuple(f"{r.session}/{r.recording}" for r in rows.itertuples(index=False)),
         segments=tuple(segs), stem=f"{device}.pc{pc}",
-        raw_files=tuple(sorted({Path(s.raw_file).name for s in segs})))
+        raw_files=tuple(sorted({Path(s.raw_file).name for s in segs})),
+        matrix=tuple(_vec(row) for row in matrix), bias_se=bias_se)
 
 
 def results_from_labels(path: str | Path) -> Collected:

@@ -68,15 +68,25 @@ LABEL_COLUMN_DECIMALS: dict[str, int] = {
     "sync_offset_s": TIME_DECIMALS, "sync_drift_ppm": PPM_DECIMALS,
     "sync_residual_s": 12, "segment_start_s": TIME_DECIMALS, "segment_end_s": TIME_DECIMALS,
     **{f"scale_{a}": UNIT_DECIMALS for a in "xyz"}, "temperature_c": 6,
+    **{f"a_{r}{c}": UNIT_DECIMALS for r in "xyz" for c in "xyz"},
+    **{f"imutk_s_{a}": UNIT_DECIMALS for a in "xyz"},
+    **{f"imutk_mis_{n}": UNIT_DECIMALS for n in ("yz", "zy", "zx")},  # rad
+    **{f"temp_slope_{a}": ACCEL_DECIMALS for a in "xyz"}, "temp_ref_c": 6,
+    "fit_residual_rms": ACCEL_DECIMALS,
 }
 #: Label columns rounded to :data:`SIGNIFICANT_DIGITS` instead.
 LABEL_SIGNIFICANT = frozenset({"fit_condition"})
+SE_SIGNIFICANT_DIGITS = 6
+"""Significant digits of a standard error (a label column ending in ``_se``): an uncertainty
+is itself uncertain by far more, and its last digits come from finite differences and LAPACK."""
 
 
 def round_label_value(column: str, value: Any) -> Any:
     """A label file's value as written: floats of known columns rounded, others unchanged."""
     if column in LABEL_SIGNIFICANT:
         return round_significant(value)
+    if column.endswith("_se"):
+        return round_significant(value, SE_SIGNIFICANT_DIGITS)
     decimals = LABEL_COLUMN_DECIMALS.get(column)
     if decimals is None or value is None:
         return value

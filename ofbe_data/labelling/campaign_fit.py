@@ -61,6 +61,11 @@ class DeviceFit:
         Condition number of the column-normalised design matrix (inf when rank-deficient).
     residual_rms
         rms of m_k − (g·A·u_k + b_j) over recordings and axes, m/s².
+    covariance
+        (9 + 3J, 9 + 3J) covariance of ``[A.ravel(), b_0, …]`` (power cycles in sorted
+        order), σ̂²·(XᵀX)⁻¹ with σ̂² the residual variance per degree of freedom; or None.
+    dof
+        3K − (9 + 3J), the residual's degrees of freedom.
     """
 
     device: str
@@ -72,6 +77,21 @@ class DeviceFit:
     offsets: dict[int, np.ndarray] = field(default_factory=dict)
     condition: float = float("inf")
     residual_rms: float = float("nan")
+    covariance: np.ndarray | None = None
+    dof: int = 0
+
+    def matrix_covariance(self) -> np.ndarray:
+        """(9, 9) covariance of A's entries, row-major."""
+        if self.covariance is None:
+            raise ValueError(f"{self.device}: the campaign fit is not determined")
+        return self.covariance[:9, :9]
+
+    def offset_se(self, power_cycle: int) -> np.ndarray:
+        """(3,) m/s², standard errors of the offset of ``power_cycle``."""
+        if self.covariance is None:
+            raise ValueError(f"{self.device}: the campaign fit is not determined")
+        i = 9 + 3 * sorted(self.offsets).index(power_cycle)
+        return np.sqrt(np.maximum(np.diag(self.covariance)[i:i + 3], 0.0))
 
     def to_dict(self) -> dict[str, object]:
         """Plain JSON-ready form."""
@@ -154,7 +174,12 @@ def fit_device(device: str, u: np.ndarray, mean: np.ndarray, power_cycle: np.nda
                          "orientations, and together they must span three dimensions)",
                          condition=condition)
     theta, *_ = np.linalg.lstsq(X, np.asarray(mean, dtype=np.float64).ravel(), rcond=None)
-    residual = float(np.sqrt(np.mean((X @ theta - mean.ravel()) ** 2)))
+    r = X @ theta - mean.ravel()
+    residual = float(np.sqrt(np.mean(r ** 2)))
+    dof = X.shape[0] - X.shape[1]
+    scaled = X / norms
+    covariance = (float(np.sum(r * r)) / dof if dof > 0 else float("nan")) \
+        * np.linalg.inv(scaled.T @ scaled) / np.outer(norms, norms)
     A = theta[:9].reshape(3, 3)
     offsets = {int(c): theta[9 + 3 * i:12 + 3 * i].copy() for i, c in enumerate(cycles)}
-    return DeviceFit(device, k, j, True, "", A, offsets, condition, residual)
+    return DeviceFit(device, k, j, True, "", A, offsets, condition, residual, covariance, dof)

@@ -56,6 +56,7 @@ from ofbe_data.labelling.checks import (
     typical_norm_problem,
 )
 from ofbe_data.labelling.convergence import PAPER_THRESHOLD, PAPER_WINDOW, convergence_index
+from ofbe_data.labelling.multiposition import MODELS
 from ofbe_data.labelling.orientation import apparent_bias, nearest_axis, rodrigues_label, roll_pitch
 from ofbe_data.labelling.poses import PoseParams
 from ofbe_data.labelling.stationarity import (
@@ -100,13 +101,16 @@ class LabelParams:
         Largest fraction of a file's data lines that may be garbled and skipped.
     convergence_window, convergence_threshold
         The paper's convergence criterion (steps, m/s²).
-    multi_position_model
-        ``auto`` (``scale-offset`` with at least ``poses.scale_min_poses`` distinct pose
-        directions, ``offset`` below: methods.md §8), ``offset`` or ``scale-offset``
-        (:func:`ofbe_data.labelling.multiposition.fit_poses`).
+    fit_model
+        The model of methods.md §8's ladder fitted to a multi-position session's poses:
+        ``auto`` (the richest the poses support, :func:`ofbe_data.labelling.multiposition.choose_fit`)
+        or one forced: ``offset``, ``scale-offset``, ``full``, or any of them with
+        ``+temperature``. (``multi_position_model`` is read as a former name of this key.)
+    fit_alpha
+        Significance level of the F-test by which ``auto`` moves to a richer model.
     multi_position_max_condition
-        Largest condition number of a session's pose fit (good pose sets give 1–2, nearly
-        coplanar ones thousands).
+        Largest condition number of a session's pose fit (its column-scaled Jacobian: good
+        pose sets give 1–10, nearly coplanar ones thousands).
     static
         Static detector.
     sync
@@ -133,7 +137,8 @@ class LabelParams:
     max_skipped_fraction: float = 0.01
     convergence_window: int = PAPER_WINDOW
     convergence_threshold: float = PAPER_THRESHOLD
-    multi_position_model: str = "auto"
+    fit_model: str = "auto"
+    fit_alpha: float = 0.05
     multi_position_max_condition: float = 1000.0
     static: StaticParams = field(default_factory=StaticParams)
     sync: SyncParams = field(default_factory=SyncParams)
@@ -153,7 +158,13 @@ def label_params_from(data: dict[str, Any] | None, source: str | Path = "<parame
     ConfigError
         Unknown key, wrong type, or a value out of range.
     """
-    params: LabelParams = from_plain(data or {}, LabelParams, source, "label")
+    data = dict(data or {})
+    if "multi_position_model" in data:  # the key's former name
+        if "fit_model" in data:
+            raise ConfigError(source, "label.multi_position_model", "only label.fit_model (its new name)",
+                              "both keys")
+        data["fit_model"] = data.pop("multi_position_model")
+    params: LabelParams = from_plain(data, LabelParams, source, "label")
     if params.min_samples < 2:
         raise ConfigError(source, "label.min_samples", "an integer ≥ 2", str(params.min_samples))
     if params.margin_s < 0:
@@ -161,9 +172,11 @@ def label_params_from(data: dict[str, Any] | None, source: str | Path = "<parame
     for key in ("max_norm_deviation", "max_level_tilt_deg", "warn_level_tilt_deg", "max_mount_error_deg"):
         if not getattr(params, key) > 0:
             raise ConfigError(source, f"label.{key}", "a number > 0", str(getattr(params, key)))
-    if params.multi_position_model not in ("auto", "offset", "scale-offset"):
-        raise ConfigError(source, "label.multi_position_model", "auto, offset or scale-offset",
-                          repr(params.multi_position_model))
+    if params.fit_model not in ("auto", *MODELS):
+        raise ConfigError(source, "label.fit_model", "auto or one of " + ", ".join(MODELS),
+                          repr(params.fit_model))
+    if not 0 < params.fit_alpha < 1:
+        raise ConfigError(source, "label.fit_alpha", "a number between 0 and 1", str(params.fit_alpha))
     return params
 
 

@@ -4,9 +4,11 @@ methods.md §8. Every recording of a device may hold one pose or many; the poses
 with a threshold chosen over all the device's recordings at once
 (:func:`~ofbe_data.labelling.pose_search.find_session_poses`), each pose passes the same
 checks as any stationary segment, and the norm-constrained fit over the device's poses gives
-its zero-g offset (and, with ≥ ``scale_min_poses`` distinct directions under ``auto``, its
-three scale factors). Each pose becomes one label row: ``pose`` numbers it within its
-recording, ``segment_start_s``/``segment_end_s`` give its interval.
+its zero-g offset, and as far as the poses support it (``label.fit_model``, the ladder of
+:func:`~ofbe_data.labelling.multiposition.choose_fit`) its scales, non-orthogonality and bias
+temperature slope, every parameter with its standard error. Each pose becomes one label row:
+``pose`` numbers it within its recording, ``segment_start_s``/``segment_end_s`` give its
+interval; the device's fit is repeated on each of its rows.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ import numpy as np
 
 from ofbe_data.io.manifest import DeviceSpec
 from ofbe_data.io.recording import Recording
+from ofbe_data.labelling.conventions import derived_columns, derived_se, empty_columns, map_columns
 from ofbe_data.labelling.labels import (
     NO_SEGMENT,
     UNDETERMINED,
@@ -30,27 +33,57 @@ from ofbe_data.labelling.labels import (
     _Segment,
     _segment_mean,
 )
-from ofbe_data.labelling.multiposition import PoseFit, fit_poses, min_poses
-from ofbe_data.labelling.pose_search import direction_groups, distinct_directions, find_session_poses
+from ofbe_data.labelling.multiposition import (
+    ModelChoice,
+    PoseFit,
+    base_model,
+    choose_fit,
+    has_temperature,
+    map_from_params,
+    min_poses,
+    parameter_names,
+)
+from ofbe_data.labelling.pose_search import direction_groups, find_session_poses
 from ofbe_data.labelling.poses import NoPosesError
-
-AUTO = "auto"
-"""``label.multi_position_model`` that chooses by the number of distinct pose directions."""
 
 RecordingSet = list[tuple[str, dict[str, Recording], dict[str, str]]]
 """Per recording of a session: its id, its files read (device → Recording) and their paths."""
 
 
-def choose_model(means: np.ndarray, params: LabelParams) -> str:
-    """The pose-fit model for a device's poses or faces, (K, 3) m/s² (methods.md §8).
+def _fixed_entries(model: str) -> np.ndarray:
+    """(3, 3) bool: the entries of A that ``model`` fixes rather than fits (their SE is missing)."""
+    base = base_model(model)
+    if base == "scale-offset":
+        return ~np.eye(3, dtype=bool)
+    return np.tril(np.ones((3, 3), dtype=bool), -1)
 
-    ``auto``: ``scale-offset`` with at least ``label.poses.scale_min_poses`` distinct
-    directions (a face recorded twice counts once), ``offset`` otherwise; a fixed model is used
-    as given.
+
+def pose_fit_columns(choice: ModelChoice) -> dict[str, Any]:
+    """The label columns of a session's pose fit: every fitted parameter with its standard
+    error, A with the scales and imu_tk's parameters derived from it, and the model's record.
+
+    Parameters of the ladder that the chosen model does not fit stay missing (None); A and the
+    scales are missing for the ``offset`` model, which fits no map.
     """
-    if params.multi_position_model != AUTO:
-        return params.multi_position_model
-    return "scale-offset" if distinct_directions(means) >= params.poses.scale_min_poses else "offset"
+    fit = choice.fit
+    cols: dict[str, Any] = empty_columns()
+    se = np.sqrt(np.maximum(np.diag(fit.covariance), 0.0))
+    for name, value, error in zip(parameter_names(fit.model), fit.params, se, strict=True):
+        cols[name], cols[name + "_se"] = float(value), float(error)
+    model = fit.model
+
+    def to_matrix(x: np.ndarray) -> np.ndarray:
+        return map_from_params(x, model)
+
+    if base_model(model) != "offset":
+        matrix_se = derived_se(lambda x: to_matrix(x).ravel(), fit.params, fit.covariance).reshape(3, 3)
+        cols.update(map_columns(fit.matrix, np.where(_fixed_entries(model), np.nan, matrix_se)))
+        cols.update(derived_columns(to_matrix, fit.params, fit.covariance, base_model(model) == "full"))
+    if has_temperature(model):
+        cols["temp_ref_c"] = fit.temp_ref_c
+    cols.update({"fit_model": model, "fit_model_reason": choice.reason, "fit_condition": float(fit.condition),
+                 "fit_residual_rms": fit.residual_rms, "fit_dof": fit.dof, "fit_n_poses": fit.n_poses})
+    return cols
 
 
 def _device_rows(out: SessionLabels, dev: DeviceSpec, recordings: RecordingSet, params: LabelParams,
@@ -103,43 +136,55 @@ def _device_rows(out: SessionLabels, dev: DeviceSpec, recordings: RecordingSet, 
     return rows
 
 
-def pose_biases(means: np.ndarray, fit: PoseFit, g: float) -> tuple[np.ndarray, np.ndarray]:
-    """Each pose's apparent bias and direction from a fit: u_k = A⁻¹(m_k − b) / |A⁻¹(m_k − b)|,
+def pose_biases(means: np.ndarray, fit: PoseFit, g: float,
+                temperatures: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Each pose's apparent bias and direction from a fit: u_k = A⁻¹(m_k − b(τ_k)) normalised,
     b_app_k = m_k − g·u_k (means (K, 3) m/s²; returns (K, 3) m/s² and (K, 3) unit vectors)."""
-    v = (means - fit.offset) / fit.scale
+    offsets = np.broadcast_to(fit.offset, means.shape)
+    if has_temperature(fit.model):
+        offsets = offsets + (np.asarray(temperatures) - fit.temp_ref_c)[:, None] * fit.temp_slope
+    v = np.linalg.solve(fit.matrix, (means - offsets).T).T
     u = v / np.sqrt(np.sum(v * v, axis=1, keepdims=True))
     return means - g * u, u
 
 
-def _fit_device(out: SessionLabels, dev: DeviceSpec, rows: list[dict[str, Any]], params: LabelParams) -> None:
-    """Norm-constrained fit over one device's poses; labels every pose or rejects them all.
+def _temperatures(rows: list[dict[str, Any]]) -> np.ndarray | None:
+    """(K,) °C of the rows, or None when any row has no temperature."""
+    temps = [r.get("temperature_c") for r in rows]
+    if any(t is None or not np.isfinite(t) for t in temps):
+        return None
+    return np.array(temps, dtype=np.float64)
 
-    Poses in one direction (a face recorded twice, or the still seconds either side of a tap)
-    are averaged into one before the fit, so that every direction weighs the same: otherwise a
-    face held three times would pull an offset-only fit by its scale error.
+
+def _fit_device(out: SessionLabels, dev: DeviceSpec, rows: list[dict[str, Any]], params: LabelParams) -> None:
+    """The ladder's fit over one device's poses; labels every pose or rejects them all.
+
+    Every pose enters the fit as it is, as in imu_tk: averaging the means of poses in nearly
+    one direction would put a point inside the ellipsoid (two directions 2° apart average to
+    a norm 1.5e-4 short, 0.15 mg), and a face held twice is two measurements of one direction,
+    which the residual's degrees of freedom then count.
     """
     g = out.manifest.g_local
     means = np.array([r["_mean"] for r in rows])
+    temps = _temperatures(rows)
     groups = direction_groups(means)
-    faces = np.array([means[grp].mean(axis=0) for grp in groups])
-    model = choose_model(faces, params)
-    fit = fit_poses(faces, g, model, params.multi_position_max_condition)
+    choice = choose_fit(means, g, params.fit_model, params.multi_position_max_condition, params.fit_alpha,
+                        temps)
+    fit = choice.fit
     if not fit.determined:
-        need = min_poses("offset")
+        need = min_poses("offset" if params.fit_model == "auto" else params.fit_model)
         why = (f"{len(rows)} poses in {len(groups)} distinct directions, {need} at least in directions "
-               f"that span the sphere: {fit.reason}")
+               f"that span the sphere: {choice.reason}")
         for r in rows:
             out.rejections.append(Rejection(r["recording"], dev.id, UNDETERMINED,
                                             f"pose {r['pose']}: the session's poses do not determine the "
-                                            f"offset ({why})"))
+                                            f"{fit.model} model ({why})"))
         return
-    biases, directions = pose_biases(means, fit, g)
+    biases, directions = pose_biases(means, fit, g, temps)
+    columns = pose_fit_columns(choice)
     for r, b, u in zip(rows, biases, directions, strict=True):
         _finish_row(r, b, u, "multi-position")
-        r.update({"offset_x": float(fit.offset[0]), "offset_y": float(fit.offset[1]),
-                  "offset_z": float(fit.offset[2]), "fit_condition": float(fit.condition),
-                  "fit_model": fit.model, "scale_x": float(fit.scale[0]), "scale_y": float(fit.scale[1]),
-                  "scale_z": float(fit.scale[2])})
+        r.update(columns)
         out.rows.append(r)
 
 

@@ -1,28 +1,33 @@
-"""Zero-g offset (and diagonal scale) from the static poses of one multi-position session.
+"""The calibration model ladder fitted to the static poses of one power cycle (methods.md §8).
 
 A device rests in K static poses within one power cycle. Pose k's mean specific force m_k
-(m/s², sensor frame) satisfies, for a sensor with a diagonal scale map A = diag(s) and a
-zero-g offset b,
+(m/s², sensor frame) satisfies, with A the device's 3×3 map, b its zero-g offset and u_k the
+unit direction of gravity in the pose,
 
     m_k = g · A · u_k + b,        |u_k| = 1,        so   |A⁻¹ (m_k − b)| = g,
 
-with g the local gravity magnitude. No reference device tells the directions u_k; the
-norm constraint alone determines b (and s) once the poses span enough directions. This
-is methods.md §Labelling item 8 (the norm-constrained least squares over the static
-segments of a power cycle).
+with g the local gravity magnitude. No reference tells the directions u_k; the norm
+constraint alone determines b (and A up to a rotation) once the poses span enough directions.
 
-Two models are fitted with ``scipy.optimize.least_squares`` and an analytic Jacobian:
+Parametrisation (imu_tk's, Tedaldi et al. 2014, "body frame" case)
+    The fit works on the *input-referred* map M = A⁻¹ = T·K with K = diag(s) and
+    T = [[1, −α_yz, α_zy], [0, 1, −α_zx], [0, 0, 1]], and minimises imu_tk's accelerometer
+    cost Σ_k (|T·K·(m_k − b)| − g)². M and therefore A = M⁻¹ are upper triangular, which
+    fixes the rotation that gravity cannot see as imu_tk does: the frame's z axis is the
+    sensor's z sensitive axis and the frame's y–z plane holds its y axis (f_z = A_zz·a_z,
+    f_y = A_yy·a_y + A_yz·a_z). The angles are small-angle entries of T, in radians. b is the offset in
+    the sensor's output (imu_tk's ``bias_vec_``, imucal's ``b_a``, ofbe's ``offset``).
 
-``offset``
-    3 unknowns b (A = I): minimise Σ_k (|m_k − b| − g)².
-``scale-offset``
-    6 unknowns, the diagonal scale s and b: minimise Σ_k (|(m_k − b) / s| − g)².
+The ladder
+    ``offset`` (3: b; s = 1, α = 0), ``scale-offset`` (6: b, s), ``full`` (9: b, s, α_yz,
+    α_zy, α_zx). Any of them ``+temperature`` adds a per-axis bias slope c (m/s² per °C):
+    the offset at pose k is b + c·(τ_k − τ₀), τ₀ the poses' mean temperature.
 
-A model is reported as determined only with at least one pose more than it has unknowns
-(4 for ``offset``, 7 for ``scale-offset``), so that the residual measures something, and
-only when the geometry is well conditioned: the Jacobian at the solution, and the centred
-pose means (which catch coplanar poses, see :func:`span_condition`). Otherwise the estimate
-is NaN and ``reason`` says why.
+Uncertainty
+    Every fitted parameter's standard error comes from the residuals and the Jacobian at the
+    solution: cov = σ̂²·(JᵀJ)⁻¹ with σ̂² = Σ r_k² / (K − P). A model is fitted only with at
+    least one pose more than it has unknowns, so that σ̂ exists (``dof`` ≥ 1); with few
+    degrees of freedom the normalised errors follow Student's t with ``dof`` degrees.
 """
 
 from __future__ import annotations
@@ -31,12 +36,24 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import least_squares
+from scipy.stats import f as f_distribution
 
-MODELS: dict[str, int] = {"offset": 3, "scale-offset": 6}
-"""Fitted models and their number of unknowns."""
+from ofbe_data.labelling.conventions import ANGLE_NAMES, imutk_matrix
+
+BASE_MODELS: dict[str, int] = {"offset": 3, "scale-offset": 6, "full": 9}
+"""The ladder's models and their number of unknowns, simplest first."""
+
+TEMPERATURE = "+temperature"
+"""Suffix of a model with a per-axis bias temperature slope (3 more unknowns)."""
+
+MODELS: dict[str, int] = {**BASE_MODELS, **{m + TEMPERATURE: n + 3 for m, n in BASE_MODELS.items()}}
+"""Every fittable model and its number of unknowns."""
 
 REDUNDANT_POSES = 1
-"""Poses required beyond the number of unknowns."""
+"""Poses required beyond the number of unknowns (so that the residual measures the noise)."""
+
+MIN_TEMPERATURE_SPAN_C = 5.0
+"""Recorded temperature span over the poses, °C, from which a temperature slope is tried."""
 
 
 @dataclass(frozen=True)
@@ -46,23 +63,35 @@ class PoseFit:
     Attributes
     ----------
     model
-        ``offset`` or ``scale-offset``.
+        The model fitted (a key of :data:`MODELS`).
     offset
-        (3,) m/s², the zero-g offset b in the sensor frame; NaN when not determined.
-    scale
-        (3,) dimensionless diagonal scale factors s (ones for the ``offset`` model); NaN
-        when not determined.
+        (3,) m/s², the zero-g offset b in the sensor frame (at ``temp_ref_c`` with a
+        temperature model); NaN when not determined.
+    matrix
+        (3, 3) the output-referred map A (f = A·a + b) the fit used: the identity for
+        ``offset``, diagonal for ``scale-offset``, upper triangular for ``full``; NaN when not
+        determined. Which entries were *fitted* is :func:`fitted_entries`.
+    temp_slope
+        (3,) m/s² per °C, the bias temperature slope; NaN without a temperature model.
+    temp_ref_c
+        °C, the temperature at which ``offset`` holds (the poses' mean); NaN without one.
+    params
+        (P,) the fitted unknowns in the order of :func:`parameter_names`.
+    covariance
+        (P, P) their covariance σ̂²·(JᵀJ)⁻¹; NaN when not determined.
     directions
-        (K, 3) unit specific-force direction u_k of each pose in the sensor frame, the
-        normalised A⁻¹ (m_k − b); NaN when not determined.
+        (K, 3) unit specific-force direction u_k of each pose, the normalised
+        A⁻¹ (m_k − b(τ_k)); NaN when not determined.
     residual_rms
-        m/s², root mean square of |A⁻¹ (m_k − b)| − g over the poses; NaN when too few poses.
+        m/s², root mean square of |A⁻¹ (m_k − b(τ_k))| − g over the poses; NaN when too few poses.
     condition
-        The larger of two condition numbers: the residual Jacobian's at the solution
-        (:func:`jacobian_condition`) and the centred pose means' (:func:`span_condition`);
-        NaN when too few poses.
+        The larger of two condition numbers: the column-scaled Jacobian's at the solution
+        (:func:`jacobian_condition`; its square is the normal matrix's) and the centred pose
+        means' (:func:`span_condition`); NaN when too few poses.
     n_poses
         K, the number of poses given.
+    dof
+        K − P, the residual's degrees of freedom.
     determined
         Whether the poses determine the model.
     reason
@@ -71,35 +100,75 @@ class PoseFit:
 
     model: str
     offset: np.ndarray
-    scale: np.ndarray
+    matrix: np.ndarray
+    temp_slope: np.ndarray
+    temp_ref_c: float
+    params: np.ndarray
+    covariance: np.ndarray
     directions: np.ndarray
     residual_rms: float
     condition: float
     n_poses: int
+    dof: int
     determined: bool
     reason: str
+
+    @property
+    def scale(self) -> np.ndarray:
+        """(3,) each axis' gain along its own sensitive direction, ‖A_i,:‖ (imucal's K_a)."""
+        return np.sqrt(np.sum(self.matrix * self.matrix, axis=1))
+
+    @property
+    def rss(self) -> float:
+        """Residual sum of squares, (m/s²)²."""
+        return self.residual_rms ** 2 * self.n_poses
+
+
+def base_model(model: str) -> str:
+    """``full+temperature`` → ``full``."""
+    return model.removesuffix(TEMPERATURE)
+
+
+def has_temperature(model: str) -> bool:
+    """Whether ``model`` fits a bias temperature slope."""
+    return model.endswith(TEMPERATURE)
+
+
+def n_unknowns(model: str) -> int:
+    """Number of unknowns of ``model`` (raises ValueError for an unknown name)."""
+    if model not in MODELS:
+        raise ValueError(f"unknown model {model!r}; expected one of: {', '.join(MODELS)}")
+    return MODELS[model]
 
 
 def min_poses(model: str) -> int:
     """Smallest number of poses that determines ``model`` (unknowns + one redundant pose).
 
-    Parameters
-    ----------
-    model
-        ``offset`` or ``scale-offset``.
-
     Returns
     -------
     int
-        4 for ``offset``, 7 for ``scale-offset``.
+        4 for ``offset``, 7 for ``scale-offset``, 10 for ``full`` (3 more with temperature).
     """
-    return _n_unknowns(model) + REDUNDANT_POSES
+    return n_unknowns(model) + REDUNDANT_POSES
 
 
-def _n_unknowns(model: str) -> int:
-    if model not in MODELS:
-        raise ValueError(f"unknown model {model!r}; expected one of: {', '.join(MODELS)}")
-    return MODELS[model]
+def parameter_names(model: str) -> list[str]:
+    """Names of the unknowns of ``model`` in the fit's order.
+
+    ``offset_x…z`` (m/s²), ``imutk_s_x…z`` (imu_tk's input-referred scales, 1/gain),
+    ``imutk_mis_yz``, ``imutk_mis_zy``, ``imutk_mis_zx`` (rad), ``temp_slope_x…z``
+    (m/s² per °C).
+    """
+    base = base_model(model)
+    names = [f"offset_{a}" for a in "xyz"]
+    if base in ("scale-offset", "full"):
+        names += [f"imutk_s_{a}" for a in "xyz"]
+    if base == "full":
+        names += [f"imutk_mis_{n}" for n in ANGLE_NAMES]
+    if has_temperature(model):
+        names += [f"temp_slope_{a}" for a in "xyz"]
+    n_unknowns(model)
+    return names
 
 
 def _check_means(means: np.ndarray) -> np.ndarray:
@@ -117,12 +186,117 @@ def _check_g(g: float) -> float:
     return float(g)
 
 
+@dataclass(frozen=True)
+class _Unpacked:
+    offset: np.ndarray
+    s: np.ndarray
+    angles: np.ndarray
+    slope: np.ndarray
+
+    @property
+    def t(self) -> np.ndarray:
+        return imutk_matrix(self.angles)
+
+    @property
+    def m(self) -> np.ndarray:
+        """Input-referred map M = T·K."""
+        return self.t * self.s
+
+
+def _unpack(x: np.ndarray, model: str) -> _Unpacked:
+    base = base_model(model)
+    i = 3
+    s = np.ones(3)
+    angles = np.zeros(3)
+    if base in ("scale-offset", "full"):
+        s = x[i:i + 3]
+        i += 3
+    if base == "full":
+        angles = x[i:i + 3]
+        i += 3
+    slope = x[i:i + 3] if has_temperature(model) else np.zeros(3)
+    return _Unpacked(x[:3], s, angles, slope)
+
+
+def map_from_params(x: np.ndarray, model: str) -> np.ndarray:
+    """ofbe's output-referred A = (T·K)⁻¹ from the fitted unknowns ``x`` of ``model``."""
+    return np.linalg.inv(_unpack(np.asarray(x, dtype=np.float64), model).m)
+
+
+def _corrected(x: np.ndarray, means: np.ndarray, dtemp: np.ndarray,
+               model: str) -> tuple[_Unpacked, np.ndarray, np.ndarray]:
+    """(parameters, d_k = m_k − b − c·Δτ_k, v_k = M·d_k)."""
+    p = _unpack(x, model)
+    d = means - p.offset - dtemp[:, None] * p.slope
+    return p, d, d @ p.m.T
+
+
+def _residuals(x: np.ndarray, means: np.ndarray, dtemp: np.ndarray, g: float, model: str) -> np.ndarray:
+    """(K,) m/s², |T·K·(m_k − b − c·Δτ_k)| − g."""
+    _, _, v = _corrected(x, means, dtemp, model)
+    return np.sqrt(np.sum(v * v, axis=1)) - g
+
+
+def residual_jacobian(x: np.ndarray, means: np.ndarray, dtemp: np.ndarray, g: float,
+                      model: str) -> np.ndarray:
+    """(K, P) derivative of :func:`_residuals`: ∂|v|/∂θ = (v/|v|)ᵀ ∂v/∂θ with v = T·K·d.
+
+    ∂v/∂b = −M, ∂v/∂c = −M·Δτ, ∂v/∂s_j = T[:, j]·d_j, and for the angles, with w = K·d:
+    ∂v/∂α_yz = (−w_y, 0, 0), ∂v/∂α_zy = (w_z, 0, 0), ∂v/∂α_zx = (0, −w_z, 0).
+    """
+    p, d, v = _corrected(x, means, dtemp, model)
+    norm = np.maximum(np.sqrt(np.sum(v * v, axis=1, keepdims=True)), np.finfo(float).tiny)
+    e = v / norm
+    base = base_model(model)
+    m = p.m
+    cols = [-(e @ m)]
+    if base in ("scale-offset", "full"):
+        cols.append((e @ p.t) * d)
+    if base == "full":
+        w = d * p.s
+        cols.append(np.stack([-e[:, 0] * w[:, 1], e[:, 0] * w[:, 2], -e[:, 1] * w[:, 2]], axis=1))
+    if has_temperature(model):
+        cols.append(-(e @ m) * dtemp[:, None])
+    return np.hstack(cols)
+
+
+def condition_number(matrix: np.ndarray) -> float:
+    """σ_max / σ_min of a (K, P) matrix; ``inf`` when K < P or it is rank deficient."""
+    if matrix.shape[0] < matrix.shape[1]:
+        return float("inf")
+    sv = np.linalg.svd(matrix, compute_uv=False)
+    return float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf")
+
+
+def _column_scaled(jac: np.ndarray) -> np.ndarray:
+    norms = np.sqrt(np.sum(jac * jac, axis=0))
+    return jac / np.where(norms > 0, norms, 1.0)
+
+
+def jacobian_condition(jac: np.ndarray) -> float:
+    """Condition number of a residual Jacobian with its columns scaled to unit norm.
+
+    Scaling makes it independent of the parameters' units (m/s², dimensionless scales,
+    radians, m/s² per °C); its square is the condition number of the normal matrix JᵀJ.
+    """
+    return condition_number(_column_scaled(jac))
+
+
+def span_condition(means: np.ndarray) -> float:
+    """Condition number of the centred pose means, (K, 3) m − mean(m): ``inf`` when coplanar.
+
+    Coplanar poses leave the offset's component normal to their plane undetermined, yet the
+    nonlinear solution can drift off the plane to where the Jacobian looks regular; the
+    centred means (the design of the linearised sphere fit, intercept removed) do not move.
+    """
+    return condition_number(means - means.mean(axis=0))
+
+
 def sphere_centre(means: np.ndarray, g: float) -> np.ndarray:
     """Linearised least-squares sphere centre, the start of the nonlinear fit.
 
     |m_k|² = 2 m_k·b + (g² − |b|²) is linear in b and c = g² − |b|²; this solves it for
-    (b, c) by (minimum-norm) linear least squares and returns b, ignoring the coupling
-    between b and c.
+    (b, c) by (minimum-norm) linear least squares and returns b.
 
     Parameters
     ----------
@@ -140,92 +314,7 @@ def sphere_centre(means: np.ndarray, g: float) -> np.ndarray:
     _check_g(g)
     design = np.hstack([2.0 * m, np.ones((m.shape[0], 1))])
     rhs = np.sum(m * m, axis=1)
-    solution = np.linalg.lstsq(design, rhs, rcond=None)[0]
-    return solution[:3]
-
-
-def _unpack(x: np.ndarray, model: str) -> tuple[np.ndarray, np.ndarray]:
-    """(offset, scale) from the parameter vector ``[b]`` or ``[b, s]``."""
-    if model == "offset":
-        return x[:3], np.ones(3)
-    return x[:3], x[3:6]
-
-
-def _residuals(x: np.ndarray, means: np.ndarray, g: float, model: str) -> np.ndarray:
-    """(K,) m/s², |(m_k − b) / s| − g."""
-    b, s = _unpack(x, model)
-    return np.linalg.norm((means - b) / s, axis=1) - g
-
-
-def _jacobian(x: np.ndarray, means: np.ndarray, g: float, model: str) -> np.ndarray:
-    """(K, 3) or (K, 6) derivative of :func:`_residuals` with respect to ``[b]`` or ``[b, s]``.
-
-    With v = (m − b)/s: ∂|v|/∂b_i = −v_i / (s_i |v|) and ∂|v|/∂s_i = −v_i² / (s_i |v|).
-    """
-    b, s = _unpack(x, model)
-    v = (means - b) / s
-    norm = np.maximum(np.linalg.norm(v, axis=1, keepdims=True), np.finfo(float).tiny)
-    d_b = -v / (s * norm)
-    if model == "offset":
-        return d_b
-    return np.hstack([d_b, -v * v / (s * norm)])
-
-
-def condition_number(matrix: np.ndarray) -> float:
-    """σ_max / σ_min of a matrix with at least as many rows as columns.
-
-    Parameters
-    ----------
-    matrix
-        (K, P) matrix.
-
-    Returns
-    -------
-    float
-        The 2-norm condition number; ``inf`` when K < P or the matrix is rank deficient.
-    """
-    if matrix.shape[0] < matrix.shape[1]:
-        return float("inf")
-    sv = np.linalg.svd(matrix, compute_uv=False)
-    return float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf")
-
-
-def jacobian_condition(x: np.ndarray, means: np.ndarray, g: float, model: str) -> float:
-    """Condition number of the residual Jacobian at ``x``, in consistent units.
-
-    The offset columns are dimensionless; the scale columns are taken per unit of g·s (an
-    acceleration, like b), so that no column is small merely because of its unit.
-
-    Parameters
-    ----------
-    x
-        (3,) or (6,) parameters ``[b]`` or ``[b, s]``, b in m/s².
-    means
-        (K, 3) m/s², pose means.
-    g
-        m/s², gravity magnitude.
-    model
-        ``offset`` or ``scale-offset``.
-
-    Returns
-    -------
-    float
-        The condition number (``inf`` when rank deficient).
-    """
-    jac = _jacobian(x, means, g, model)
-    if model != "offset":
-        jac = np.hstack([jac[:, :3], jac[:, 3:] / g])
-    return condition_number(jac)
-
-
-def span_condition(means: np.ndarray) -> float:
-    """Condition number of the centred pose means, (K, 3) m − mean(m): ``inf`` when coplanar.
-
-    Coplanar poses leave the offset's component normal to their plane undetermined, yet the
-    nonlinear solution can drift off the plane to where the Jacobian looks regular; the
-    centred means (the design of the linearised sphere fit, intercept removed) do not move.
-    """
-    return condition_number(means - means.mean(axis=0))
+    return np.linalg.lstsq(design, rhs, rcond=None)[0][:3]
 
 
 START_DECIMALS = 6
@@ -239,19 +328,42 @@ the start is the same on every machine and so is the fit (and the label file's b
 
 def _start(means: np.ndarray, g: float, model: str) -> np.ndarray:
     b0 = np.round(sphere_centre(means, g), START_DECIMALS)
-    if model == "offset":
-        return b0
-    ratio = float(np.mean(np.linalg.norm(means - b0, axis=1))) / g
-    return np.concatenate([b0, np.full(3, ratio if ratio > 0 else 1.0)])
+    x = [b0]
+    base = base_model(model)
+    if base in ("scale-offset", "full"):
+        gain = float(np.mean(np.sqrt(np.sum((means - b0) ** 2, axis=1)))) / g
+        x.append(np.full(3, 1.0 / gain if gain > 0 else 1.0))
+    if base == "full":
+        x.append(np.zeros(3))
+    if has_temperature(model):
+        x.append(np.zeros(3))
+    return np.concatenate(x)
+
+
+def _temperature_offsets(temperatures: np.ndarray | None, k: int, model: str) -> tuple[np.ndarray, float]:
+    """(Δτ_k, τ₀): pose temperatures about their mean (zeros and NaN without a temperature model)."""
+    if not has_temperature(model):
+        return np.zeros(k), float("nan")
+    if temperatures is None:
+        raise ValueError(f"the {model} model needs the poses' temperatures")
+    tau = np.asarray(temperatures, dtype=np.float64)
+    if tau.shape != (k,) or not np.all(np.isfinite(tau)):
+        raise ValueError(f"temperatures must be {k} finite values, got {tau.shape}")
+    ref = float(np.round(np.mean(tau), 6))
+    return tau - ref, ref
 
 
 def _nan_fit(model: str, k: int, residual_rms: float, condition: float, reason: str) -> PoseFit:
-    return PoseFit(model, np.full(3, np.nan), np.full(3, np.nan), np.full((k, 3), np.nan),
-                   residual_rms, condition, k, False, reason)
+    p = n_unknowns(model)
+    nan3 = np.full(3, np.nan)
+    return PoseFit(model, nan3, np.full((3, 3), np.nan), nan3.copy(), float("nan"), np.full(p, np.nan),
+                   np.full((p, p), np.nan), np.full((k, 3), np.nan), residual_rms, condition, k, k - p, False,
+                   reason)
 
 
-def fit_poses(means: np.ndarray, g: float, model: str = "offset", max_condition: float = 1e6) -> PoseFit:
-    """Norm-constrained least-squares fit of the zero-g offset (and scale) to static poses.
+def fit_poses(means: np.ndarray, g: float, model: str = "offset", max_condition: float = 1e6,
+              temperatures: np.ndarray | None = None) -> PoseFit:
+    """Fit one model of the ladder to static poses by imu_tk's norm-constrained least squares.
 
     Parameters
     ----------
@@ -261,13 +373,14 @@ def fit_poses(means: np.ndarray, g: float, model: str = "offset", max_condition:
     g
         m/s², local gravity magnitude (> 0).
     model
-        ``offset`` (3 unknowns b) or ``scale-offset`` (6 unknowns: diagonal scale s, b).
+        A key of :data:`MODELS`.
     max_condition
         Largest acceptable ``condition`` (see :class:`PoseFit`). The default 1e6 rejects only
-        (numerically) degenerate geometry. Noise makes near-degenerate conditions finite:
-        twelve coplanar poses with 0.3 mg of noise out of their plane give about 3e3 (offset)
-        and 4e5 (scale-offset, whose estimate is then meaningless), while six faces or
-        random orientations give 1–2. Pass about 1e3 or less to reject such pose sets too.
+        (numerically) degenerate geometry; labelling uses 1000. Six faces or random
+        orientations give 1–10; twelve coplanar poses with 0.3 mg of noise out of their plane
+        give thousands.
+    temperatures
+        (K,) °C, each pose's mean temperature; needed by the ``+temperature`` models only.
 
     Returns
     -------
@@ -279,40 +392,153 @@ def fit_poses(means: np.ndarray, g: float, model: str = "offset", max_condition:
     ------
     ValueError
         If ``means`` is not a finite (K, 3) array, ``g`` is not positive and finite,
-        ``model`` is unknown or ``max_condition`` is not positive.
+        ``model`` is unknown, ``max_condition`` is not positive, or a temperature model is
+        asked for without finite temperatures.
     """
-    n_unknowns = _n_unknowns(model)
+    p = n_unknowns(model)
     m = _check_means(means)
     g = _check_g(g)
     if not max_condition > 0:
         raise ValueError(f"max_condition must be positive, got {max_condition!r}")
     k = m.shape[0]
-    needed = n_unknowns + REDUNDANT_POSES
+    needed = p + REDUNDANT_POSES
     if k < needed:
         return _nan_fit(model, k, float("nan"), float("nan"),
                         f"{needed} poses needed for the {model} model, found {k}")
-    solution = least_squares(_residuals, _start(m, g, model), jac=_jacobian, method="lm",
-                             args=(m, g, model), xtol=1e-12, ftol=1e-12, gtol=1e-12)
+    dtemp, ref = _temperature_offsets(temperatures, k, model)
+    solution = least_squares(_residuals, _start(m, g, model), jac=residual_jacobian, method="lm",
+                             args=(m, dtemp, g, model), xtol=1e-12, ftol=1e-12, gtol=1e-12)
     x = solution.x
-    residual_rms = float(np.sqrt(np.mean(_residuals(x, m, g, model) ** 2)))
+    r = _residuals(x, m, dtemp, g, model)
+    residual_rms = float(np.sqrt(np.mean(r * r)))
+    jac = residual_jacobian(x, m, dtemp, g, model)
     span = span_condition(m)
-    jac = jacobian_condition(x, m, g, model)
-    condition = max(span, jac)
+    jcond = jacobian_condition(jac)
+    condition = max(span, jcond)
     if not condition <= max_condition:
-        what = ("poses do not span three dimensions" if model == "offset" or span >= jac
-                else "poses do not determine scale and offset")
+        what = ("poses do not span three dimensions" if base_model(model) == "offset" or span >= jcond
+                else f"poses do not determine the {model} model's parameters")
         return _nan_fit(model, k, residual_rms, condition,
                         f"{what} (condition {condition:.1e} > {max_condition:.0e})")
-    b, s = _unpack(x, model)
-    v = (m - b) / s
-    directions = v / np.linalg.norm(v, axis=1, keepdims=True)
-    return PoseFit(model, b.copy(), s.copy(), directions, residual_rms, condition, k, True, "")
+    dof = k - p
+    sigma2 = float(np.sum(r * r)) / dof
+    covariance = sigma2 * np.linalg.pinv(jac.T @ jac)
+    parts = _unpack(x, model)
+    matrix = map_from_params(x, model)
+    _, _, v = _corrected(x, m, dtemp, model)
+    directions = v / np.sqrt(np.sum(v * v, axis=1, keepdims=True))
+    slope = parts.slope.copy() if has_temperature(model) else np.full(3, np.nan)
+    return PoseFit(model, parts.offset.copy(), matrix, slope, ref, x.copy(), covariance, directions,
+                   residual_rms, condition, k, dof, True, "")
+
+
+def f_test(simple: PoseFit, rich: PoseFit) -> tuple[float, float]:
+    """F statistic and p-value of ``rich`` against the nested ``simple`` fit of the same poses.
+
+    F = ((RSS_simple − RSS_rich) / (P_rich − P_simple)) / (RSS_rich / (K − P_rich)); a small
+    p-value says the richer model's extra parameters explain more than noise would.
+    """
+    extra = rich.params.size - simple.params.size
+    if rich.dof < 1 or extra < 1:
+        return float("nan"), float("nan")
+    denominator = rich.rss / rich.dof
+    if denominator <= 0:
+        return float("inf"), 0.0
+    stat = max(simple.rss - rich.rss, 0.0) / extra / denominator
+    return float(stat), float(f_distribution.sf(stat, extra, rich.dof))
+
+
+@dataclass(frozen=True)
+class ModelChoice:
+    """The fit the ladder chose and why (:func:`choose_fit`).
+
+    Attributes
+    ----------
+    fit
+        The chosen model's fit (``fit.determined`` False when even ``offset`` is not).
+    reason
+        One line: the model, what supported it, and why each richer model was not used.
+    """
+
+    fit: PoseFit
+    reason: str
+
+
+def choose_fit(means: np.ndarray, g: float, model: str = "auto", max_condition: float = 1000.0,
+               alpha: float = 0.05, temperatures: np.ndarray | None = None) -> ModelChoice:
+    """Fit the richest model of the ladder the poses support, or the one forced.
+
+    ``auto`` starts from ``offset`` and moves to each richer model (``scale-offset``, then
+    ``full``) that (1) has enough poses (:func:`min_poses`), (2) is well conditioned
+    (``max_condition``) and (3) improves the fit beyond noise: its F-test against the model
+    chosen so far has p < ``alpha``. A bias temperature slope is tried last, on top of the
+    chosen model, when every pose has a temperature and they span ≥ 5 °C, by the same rules.
+
+    Parameters
+    ----------
+    means
+        (K, 3) m/s², the poses' means.
+    g
+        m/s², local gravity magnitude.
+    model
+        ``auto`` or a key of :data:`MODELS` (then only that model is fitted).
+    max_condition
+        Largest condition number of a fitted model (:attr:`PoseFit.condition`).
+    alpha
+        Significance level of the F-tests.
+    temperatures
+        (K,) °C per pose, or None.
+
+    Returns
+    -------
+    ModelChoice
+    """
+    m = _check_means(means)
+    if model != "auto":
+        fit = fit_poses(m, g, model, max_condition, temperatures)
+        why = "forced by label.fit_model" if fit.determined else fit.reason
+        return ModelChoice(fit, f"{model}: {why}")
+    chosen = fit_poses(m, g, "offset", max_condition)
+    notes = [f"{m.shape[0]} poses"]
+    if not chosen.determined:
+        return ModelChoice(chosen, f"offset: {chosen.reason}")
+    for candidate in ("scale-offset", "full"):
+        verdict, chosen = _try_richer(m, g, chosen, candidate, max_condition, alpha, None)
+        notes.append(verdict)
+    temps = None if temperatures is None else np.asarray(temperatures, dtype=np.float64)
+    if temps is not None and temps.shape == (m.shape[0],) and np.all(np.isfinite(temps)):
+        span = float(np.ptp(temps))
+        if span >= MIN_TEMPERATURE_SPAN_C:
+            verdict, chosen = _try_richer(m, g, chosen, chosen.model + TEMPERATURE, max_condition, alpha,
+                                          temps)
+            notes.append(f"{verdict} (temperature span {span:.1f} °C)")
+        else:
+            notes.append(f"no temperature slope: the poses span {span:.1f} °C, "
+                         f"{MIN_TEMPERATURE_SPAN_C:g} needed")
+    return ModelChoice(chosen, f"{chosen.model}: " + "; ".join(notes))
+
+
+def _try_richer(means: np.ndarray, g: float, chosen: PoseFit, candidate: str, max_condition: float,
+                alpha: float, temperatures: np.ndarray | None) -> tuple[str, PoseFit]:
+    """Whether ``candidate`` replaces ``chosen``: (one-line verdict, the fit kept)."""
+    needed = min_poses(candidate)
+    if means.shape[0] < needed:
+        return f"{candidate} not fitted: {needed} poses needed", chosen
+    rich = fit_poses(means, g, candidate, max_condition, temperatures)
+    if not rich.determined:
+        return f"{candidate} not fitted: {rich.reason}", chosen
+    stat, p_value = f_test(chosen, rich)
+    if not p_value < alpha:
+        return (f"{candidate} not used: no improvement beyond noise over {chosen.model} "
+                f"(F = {stat:.3g}, p = {p_value:.2g} ≥ {alpha:g})"), chosen
+    return (f"{candidate} over {chosen.model}: F = {stat:.3g}, p = {p_value:.2g} < {alpha:g}, "
+            f"condition {rich.condition:.3g}"), rich
 
 
 def apparent_biases(means: np.ndarray, fit: PoseFit, g: float) -> np.ndarray:
     """Apparent bias of each pose: what a one-position calibration would remove there.
 
-    b_app_k = m_k − g·u_k, which equals b + (A − I)·u_k·g for A = diag(scale).
+    b_app_k = m_k − g·u_k, which equals b + (A − I)·u_k·g.
 
     Parameters
     ----------

@@ -42,7 +42,7 @@ import numpy as np
 
 from ofbe_data.core.errors import ConfigError, OfbeError
 from ofbe_data.io.gravity import G0
-from ofbe_data.labelling.multiposition import MODELS, PoseFit, fit_poses, min_poses
+from ofbe_data.labelling.multiposition import BASE_MODELS, MODELS, PoseFit, fit_poses, min_poses
 
 FLOOR_INITIAL = "initial quiet stretch"  #: ``floor_source``: the first ``init_quiet_s`` set the floor
 FLOOR_QUIETEST = "quietest part"  #: ``floor_source``: the quietest stretch set it
@@ -118,7 +118,7 @@ class PoseParams:
         threshold adds samples at the poses' edges and lowers the residual by noise alone; one
         that lets handling in raises it far more.
     model
-        Fit that scores a candidate: ``offset``, ``scale-offset`` or ``auto`` (``scale-offset``
+        Fit that scores a candidate: ``offset``, ``scale-offset``, ``full`` or ``auto`` (``scale-offset``
         from ``scale_min_poses`` poses, else ``offset``, as methods.md §8 fits sessions). Scale
         errors of 1–3 % leave an offset-only fit 0.1–0.3 m/s² of residual that would hide what
         the detection did.
@@ -148,8 +148,8 @@ class PoseParams:
             if f.name not in ("multipliers", "model", "scale_min_poses"):
                 _check_number(f.name, getattr(self, f.name), f.name in _MAY_BE_ZERO)
         _check_multipliers(self.multipliers)
-        if self.model not in (AUTO, *MODELS):
-            raise PoseParamError("model", " or ".join((AUTO, *MODELS)), self.model)
+        if self.model not in (AUTO, *BASE_MODELS):
+            raise PoseParamError("model", " or ".join((AUTO, *BASE_MODELS)), self.model)
         least = min_poses("scale-offset")
         if not is_number(self.scale_min_poses) or int(self.scale_min_poses) != self.scale_min_poses \
                 or self.scale_min_poses < least:

@@ -24,6 +24,14 @@ from ofbe_data import __version__
 from ofbe_data.core.atomic import write_bytes_atomic
 from ofbe_data.core.precision import ACCEL_DECIMALS, round_floats, round_label_value
 from ofbe_data.labelling.campaign_fit import DeviceFit, fit_device
+from ofbe_data.labelling.conventions import (
+    IMUTK_COLUMNS,
+    MATRIX_COLUMNS,
+    TEMPERATURE_COLUMNS,
+    derived_columns,
+    empty_columns,
+    map_columns,
+)
 from ofbe_data.labelling.labels import REJECTIONS_FORMAT, LabelParams, SessionLabels, provenance
 
 CAMPAIGN_FIT_FORMAT = "ofbe-campaign-fit/1"
@@ -49,6 +57,19 @@ LABEL_SCHEMA = pa.schema([
     ("pose", pa.int64()), ("temperature_c", pa.float64()),
     ("fit_model", pa.string()),
     ("scale_x", pa.float64()), ("scale_y", pa.float64()), ("scale_z", pa.float64()),
+    # the calibration model (methods.md §8; docs/labelling.md "The calibration model"): how it was
+    # chosen, the fitted map A and the conventions of imu_tk, every fitted value's standard error
+    ("fit_model_reason", pa.string()), ("fit_residual_rms", pa.float64()), ("fit_dof", pa.int64()),
+    ("fit_n_poses", pa.int64()),
+    *((f"{name}_se", pa.float64()) for name in ("offset_x", "offset_y", "offset_z", "scale_x", "scale_y",
+                                                 "scale_z")),
+    *((name, pa.float64()) for name in MATRIX_COLUMNS),
+    *((f"{name}_se", pa.float64()) for name in MATRIX_COLUMNS),
+    *((name, pa.float64()) for name in IMUTK_COLUMNS),
+    *((f"{name}_se", pa.float64()) for name in IMUTK_COLUMNS),
+    *((name, pa.float64()) for name in TEMPERATURE_COLUMNS),
+    *((f"{name}_se", pa.float64()) for name in TEMPERATURE_COLUMNS),
+    ("temp_ref_c", pa.float64()),
 ])
 
 
@@ -82,20 +103,45 @@ def fit_campaign(sessions: Sequence[SessionLabels], params: LabelParams) -> dict
                          float(np.mean([r["g_local"] for r in mine])), params.campaign_fit)
         fits[device] = fit
         if fit.determined:
+            columns = campaign_map_columns(fit)
             for r in mine:
-                b = fit.offsets[r["power_cycle"]]
-                r.update({"offset_x": float(b[0]), "offset_y": float(b[1]), "offset_z": float(b[2]),
-                          "fit_condition": fit.condition, "label_method": "campaign-fit"})
+                r.update(columns)
+                b, b_se = fit.offsets[r["power_cycle"]], fit.offset_se(r["power_cycle"])
+                for i, a in enumerate("xyz"):
+                    r[f"offset_{a}"], r[f"offset_{a}_se"] = float(b[i]), float(b_se[i])
+                r["label_method"] = "campaign-fit"
     return fits
+
+
+def campaign_map_columns(fit: DeviceFit) -> dict[str, Any]:
+    """The label columns of a device's campaign fit: its full A (scale, cross-axis and the mount
+    relative to the reference) with standard errors, and the scales and imu_tk's parameters of A's
+    triangular part (:mod:`ofbe_data.labelling.conventions`)."""
+    assert fit.A is not None
+    cov = fit.matrix_covariance()
+    columns: dict[str, Any] = empty_columns()
+    columns.update(map_columns(fit.A, np.sqrt(np.maximum(np.diag(cov), 0.0)).reshape(3, 3)))
+    columns.update(derived_columns(lambda x: x.reshape(3, 3), fit.A.ravel(), cov, True))
+    columns.update({"fit_model": "campaign", "fit_condition": fit.condition,
+                    "fit_model_reason": f"campaign fit over {fit.n_recordings} recordings in "
+                                        f"{fit.n_power_cycles} power cycles",
+                    "fit_residual_rms": fit.residual_rms, "fit_dof": fit.dof,
+                    "fit_n_poses": fit.n_recordings})
+    return columns
 
 
 def labels_table(labels: SessionLabels, params: LabelParams) -> pa.Table:
     """The session's rows as an Arrow table in :data:`LABEL_SCHEMA`, provenance attached."""
     names = LABEL_SCHEMA.names
-    data = {n: [round_label_value(n, r.get(n)) for r in labels.rows] for n in names}
+    data = {n: [_missing_if_nan(round_label_value(n, r.get(n))) for r in labels.rows] for n in names}
     table = pa.Table.from_pydict(data, schema=LABEL_SCHEMA)
     meta = {b"ofbe": json.dumps(provenance(labels, params), sort_keys=True).encode()}
     return table.replace_schema_metadata(meta)
+
+
+def _missing_if_nan(value: Any) -> Any:
+    """A float NaN is written as a missing value (a parameter not fitted, products.md)."""
+    return None if isinstance(value, float) and value != value else value
 
 
 def _parquet_bytes(table: pa.Table) -> bytes:

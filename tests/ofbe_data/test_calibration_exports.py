@@ -43,6 +43,7 @@ from ofbe_data.io.formats import read_device_file
 from ofbe_data.io.gravity import G0
 from ofbe_data.io.manifest import load_manifest
 from ofbe_data.labelling.batch import expand_sessions, label_sessions
+from ofbe_data.labelling.conventions import MATRIX_COLUMNS
 from ofbe_data.labelling.labels import LabelParams
 from ofbe_data.labelling.store import read_labels
 from ofbe_data.simulator import load_config, simulate_campaign
@@ -89,6 +90,7 @@ def scaled_labels(campaign, tmp_path_factory) -> Path:
         frame = table.to_pandas()
         frame["fit_model"] = "scale-offset"
         frame[["scale_x", "scale_y", "scale_z"]] = [1.012, 0.991, 1.004]
+        frame[list(MATRIX_COLUMNS)] = np.nan  # a label file from before the a_* columns
         pq.write_table(pa.Table.from_pandas(frame, schema=table.schema, preserve_index=False), out / f.name)
     return out
 
@@ -120,7 +122,11 @@ def test_offsets_become_one_zero_g_result_per_power_cycle(campaign) -> None:
         assert r.bias_kind == ZERO_G_OFFSET and r.method == "multi-position" and r.std is None
         assert r.bias == tuple(rows[["offset_x", "offset_y", "offset_z"]].iloc[0])
         assert r.n_rows == len(rows) >= 6 and len(r.segments) == len(rows)
-        assert r.scale == (1.0, 1.0, 1.0) and not r.scale_known and "scale identity" in r.scale_note
+        # six faces, each held for up to three poses: the scale-offset fit, A diagonal
+        assert set(rows["fit_model"]) == {"scale-offset"}
+        assert r.scale_known and "scale-offset fit" in r.scale_note
+        assert r.scale == tuple(rows[["scale_x", "scale_y", "scale_z"]].iloc[0])
+        assert np.array_equal(np.array(r.matrix), np.diag(r.scale))
         assert r.stem == f"sparkfun-1.pc{r.power_cycle}"
         assert r.sources[0].sha256 == hashlib.sha256(Path(r.sources[0].path).read_bytes()).hexdigest()
 
@@ -178,7 +184,7 @@ def _imucal_load(tmp_path: Path, data: bytes):
 def test_imucal_corrects_as_ofbe_does(tmp_path, campaign, scaled_labels, scaled) -> None:
     """imucal's own calibrate (R⁻¹K⁻¹(f − b)) on a raw recording equals ofbe's A⁻¹(f − b)."""
     r = results_from_labels(scaled_labels if scaled else campaign / "labels" / "mp").results[0]
-    assert r.scale_known == scaled
+    assert r.scale_known
     data = fmt.imucal_file(r, WRITTEN)
     cal = _imucal_load(tmp_path, data)
     assert cal.to_json().encode() == data  # byte for byte what imucal itself writes
@@ -187,7 +193,7 @@ def test_imucal_corrects_as_ofbe_does(tmp_path, campaign, scaled_labels, scaled)
     acc = _one_raw(campaign, "mp", "mp-pc001", "sparkfun-1")
     gyr = np.random.default_rng(0).normal(size=acc.shape)
     cal_acc, cal_gyr = cal.calibrate(acc=acc, gyr=gyr, acc_unit="m/s^2", gyr_unit="deg/s")
-    ours = fmt.ofbe_correct(acc, r.bias, r.scale)
+    ours = fmt.ofbe_correct(acc, r.bias, r.matrix)
     assert np.max(np.abs(cal_acc - ours)) < 1e-9
     assert np.array_equal(cal_gyr, gyr)  # gyroscope identity/zero
     assert np.max(np.abs(np.asarray(r.bias))) > 0.05  # the sign matters: b is far from zero
@@ -199,7 +205,7 @@ def test_imucal_corrects_as_ofbe_does(tmp_path, campaign, scaled_labels, scaled)
 @pytest.mark.parametrize("scaled", [False, True])
 def test_ggir_formula_equals_ofbe_correction(campaign, scaled_labels, scaled) -> None:
     r = results_from_labels(scaled_labels if scaled else campaign / "labels" / "mp").results[1]
-    assert r.scale_known == scaled
+    assert r.scale_known
     table = pd.read_csv(io.BytesIO(fmt.ggir_file(r, WRITTEN)))
     assert tuple(table.columns) == fmt.GGIR_COLUMNS and table.columns[0] == "filename"
     assert list(table["filename"]) == ["sparkfun-1.csv"] and list(table["bias_kind"]) == [ZERO_G_OFFSET]
@@ -211,7 +217,7 @@ def test_ggir_formula_equals_ofbe_correction(campaign, scaled_labels, scaled) ->
     assert np.all(np.sign(offset_g) == -np.sign(r.bias))  # GGIR adds its offset
     raw = _one_raw(campaign, "mp", "mp-pc002", "sparkfun-1")
     ggir = fmt.ggir_apply(raw / G0, scale_g, offset_g)  # (raw_g + offset) * scale, in g
-    assert np.max(np.abs(ggir * G0 - fmt.ofbe_correct(raw, r.bias, r.scale))) < 1e-12
+    assert np.max(np.abs(ggir * G0 - fmt.ofbe_correct(raw, r.bias, r.matrix))) < 1e-12
 
 
 def test_ggir_writes_a_row_per_raw_file(campaign, apparent_labels) -> None:

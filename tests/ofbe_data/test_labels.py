@@ -173,8 +173,9 @@ def test_multi_position_sessions_give_zero_g_offsets(tmp_path):
     assert (per_file["max"] == per_file["count"] - 1).all()
     longest = labels.loc[labels.groupby(["session", "recording", "device"])["n_samples"].idxmax()]
     assert (longest["segment_end_s"] - longest["segment_start_s"] > 27.0).all()  # 31–32 s between taps
-    # nine distinct faces: the default model also fits the three scale factors
-    assert set(labels["fit_model"]) == {"scale-offset"}
+    # nine distinct faces (six and three random), most held for three poses: the ladder reaches
+    # the full model (1 % scale and 0.3° non-orthogonality errors are far beyond the noise)
+    assert set(labels["fit_model"]) == {"full"}
     df = _with_truth(labels, _truth(tmp_path / "mp"))
     err = _vec(df, "offset") - np.stack(df["true_offset"])
     assert np.all(np.sqrt(np.mean(err**2, axis=0)) <= 1.0 * MG), np.sqrt(np.mean(err**2, axis=0)) / MG

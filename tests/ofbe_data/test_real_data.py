@@ -69,10 +69,16 @@ def test_zero_g_offset_agrees_with_imucals_ferraris_calibration(continuous, anno
     # imucal: a_raw = K_a·R_a·a + b_a, so b_a is the output-referred zero-g offset, as ofbe's b is
     theirs = np.asarray(cal.b_a, dtype=np.float64)
     ours = np.array([labels.rows[0][f"offset_{a}"] for a in "xyz"])
-    assert all(r["label_method"] == "multi-position" and r["fit_model"] == "offset" for r in labels.rows)
-    # docs/real-data.md: Ferraris takes each axis' offset from its two opposite faces; the
-    # norm-constrained fit uses every face's whole reading. Measured difference 0.0025 m/s² at most.
-    np.testing.assert_allclose(ours, theirs, rtol=0, atol=0.005)
+    # the ladder climbs to scale-offset (K_a 1-2 % from one is far beyond noise) and stops there:
+    # every pose lies on one of the six faces, which leave the norm method blind to
+    # non-orthogonality (condition 1.7e5); imucal gets R_a by assuming the faces are a perfect cube
+    assert {(r["label_method"], r["fit_model"]) for r in labels.rows} == {("multi-position", "scale-offset")}
+    assert "full not fitted: poses do not determine the full model's parameters" in labels.rows[0][
+        "fit_model_reason"]
+    np.testing.assert_allclose([labels.rows[0][f"scale_{a}"] for a in "xyz"], np.diag(cal.K_a), rtol=3e-4)
+    # docs/real-data.md: Ferraris takes each axis' offset from the annotated stretch of its two
+    # opposite faces; the fit uses every still pose found. Measured difference 0.32 mg at most.
+    np.testing.assert_allclose(ours, theirs, rtol=0, atol=0.5 * 9.80665e-3)
     assert np.abs(ours).max() > 0.3  # a large offset (0.53 m/s² in x): the agreement is not trivial
 
 
