@@ -36,20 +36,35 @@ class TruthError(OfbeError):
     """A truth file is missing or lacks a labelled recording."""
 
 
+def _pose_truth(d: dict[str, Any], start_s: Any, end_s: Any) -> dict[str, Any]:
+    """The truth of the pose a label row's interval lies in (continuous recordings list their
+    poses, each with its own offset and direction), else the recording's own truth."""
+    poses = d.get("poses")
+    if not poses or start_s is None or end_s is None or not np.isfinite(start_s):
+        return d
+    overlaps = [min(end_s, p["t_device"][1]) - max(start_s, p["t_device"][0]) for p in poses]
+    best = int(np.argmax(overlaps))
+    return poses[best] if overlaps[best] > 0 else d
+
+
 def truth_table(truth_dir: str | Path, labels: pd.DataFrame) -> pd.DataFrame:
-    """True apparent bias and offset of every label row, (n, 6) as a frame.
+    """True apparent bias and offset of every label row, as a frame.
+
+    A row of a continuous recording (many poses in one file) is compared with the truth of the
+    pose its interval lies in, not with the recording's first pose.
 
     Parameters
     ----------
     truth_dir
         The campaign's ``_truth`` folder.
     labels
-        Label rows (``session``, ``recording``, ``device``).
+        Label rows (``session``, ``recording``, ``device``; ``segment_start_s``/``_end_s``).
 
     Returns
     -------
     pandas.DataFrame
-        ``true_bias_x/y/z`` and ``true_offset_x/y/z`` (m/s²), index of ``labels``.
+        ``true_bias_x/y/z`` and ``true_offset_x/y/z`` (m/s²), and ``true_A`` (the device's
+        3×3 map, for a campaign fit the one relative to the reference), index of ``labels``.
 
     Raises
     ------
@@ -58,7 +73,7 @@ def truth_table(truth_dir: str | Path, labels: pd.DataFrame) -> pd.DataFrame:
     """
     truth_dir = Path(truth_dir)
     cache: dict[str, dict[str, Any]] = {}
-    out = []
+    out, maps = [], []
     for r in labels.itertuples():
         if r.session not in cache:
             path = truth_dir / f"{r.session}.json"
@@ -69,23 +84,33 @@ def truth_table(truth_dir: str | Path, labels: pd.DataFrame) -> pd.DataFrame:
                                  f"found {exc}") from None
         try:
             d = cache[r.session]["recordings"][r.recording]["devices"][r.device]
+            dev = cache[r.session]["devices"][r.device]
         except (KeyError, TypeError):
             raise TruthError(f"{truth_dir / (r.session + '.json')}: expected recording {r.recording}, device "
                              f"{r.device}, found no such entry") from None
+        d = _pose_truth(d, getattr(r, "segment_start_s", None), getattr(r, "segment_end_s", None))
         out.append([*d["apparent_bias"], *d["offset"]])
+        key = "A_effective" if getattr(r, "label_method", "") == "campaign-fit" else "A"
+        maps.append(np.asarray(dev.get(key, np.full((3, 3), np.nan)), dtype=np.float64))
     cols = [f"true_bias_{a}" for a in AXES] + [f"true_offset_{a}" for a in AXES]
-    return pd.DataFrame(np.array(out, dtype=np.float64).reshape(-1, 6), columns=cols, index=labels.index)
+    frame = pd.DataFrame(np.array(out, dtype=np.float64).reshape(-1, 6), columns=cols, index=labels.index)
+    frame["true_A"] = maps
+    return frame
 
 
-def label_fidelity(labels: pd.DataFrame, truth_dir: str | Path) -> dict[str, Any]:
-    """RMS and largest label errors against the truth, in mg.
+def label_fidelity(labels: pd.DataFrame, truth_dir: str | Path, maps: bool = True) -> dict[str, Any]:
+    """RMS and largest label errors against the truth, in mg (offsets) and ppm (the map A).
+
+    ``maps=False`` leaves the map out (a dataset card reports the labels its windows carry).
 
     Returns
     -------
     dict
         ``n``; ``bias_rms_mg`` and ``bias_max_mg`` per axis (apparent bias, the paper's
         label); ``offset_rms_mg`` / ``offset_max_mg`` per axis and ``n_offsets`` when some
-        rows carry a zero-g offset.
+        rows carry a zero-g offset; ``A_rms_ppm`` / ``A_max_ppm`` (entries of the fitted A
+        against the truth's, over each fitted device and power cycle once) and ``n_maps`` when
+        some rows carry a fitted A.
     """
     truth = truth_table(truth_dir, labels)
     out: dict[str, Any] = {"n": len(labels)}
@@ -102,4 +127,16 @@ def label_fidelity(labels: pd.DataFrame, truth_dir: str | Path) -> dict[str, Any
         big = np.max(np.abs(err), axis=0)
         out[f"{name}_rms_mg"] = {a: round(float(rms[i]), 4) for i, a in enumerate(AXES)}
         out[f"{name}_max_mg"] = {a: round(float(big[i]), 4) for i, a in enumerate(AXES)}
+    names = [f"a_{r}{c}" for r in AXES for c in AXES]
+    if maps and set(names) <= set(labels.columns):
+        fitted = labels[names].to_numpy(dtype=np.float64)
+        ok = np.all(np.isfinite(fitted), axis=1)
+        keys = labels[["session", "device"]].astype(str).agg("/".join, axis=1).to_numpy()
+        first = {k: i for i, k in reversed(list(enumerate(keys))) if ok[i]}
+        if first:
+            idx = sorted(first.values())
+            err = np.array([fitted[i] - truth["true_A"].iloc[i].ravel() for i in idx]) * 1e6
+            out["n_maps"] = len(idx)
+            out["A_rms_ppm"] = round(float(np.sqrt(np.mean(err**2))), 2)
+            out["A_max_ppm"] = round(float(np.max(np.abs(err))), 2)
     return out

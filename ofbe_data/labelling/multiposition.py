@@ -471,8 +471,10 @@ def choose_fit(means: np.ndarray, g: float, model: str = "auto", max_condition: 
     ``auto`` starts from ``offset`` and moves to each richer model (``scale-offset``, then
     ``full``) that (1) has enough poses (:func:`min_poses`), (2) is well conditioned
     (``max_condition``) and (3) improves the fit beyond noise: its F-test against the model
-    chosen so far has p < ``alpha``. A bias temperature slope is tried last, on top of the
-    chosen model, when every pose has a temperature and they span ≥ 5 °C, by the same rules.
+    chosen so far has p < ``alpha``. When every pose has a temperature and they span ≥ 5 °C, a
+    bias temperature slope is tried first on the offset model (a slope of mg per °C would
+    otherwise pass for noise and hide the map) and kept up the ladder when significant, or
+    tried last on top of the chosen model, by the same rules.
 
     Parameters
     ----------
@@ -502,19 +504,24 @@ def choose_fit(means: np.ndarray, g: float, model: str = "auto", max_condition: 
     notes = [f"{m.shape[0]} poses"]
     if not chosen.determined:
         return ModelChoice(chosen, f"offset: {chosen.reason}")
-    for candidate in ("scale-offset", "full"):
-        verdict, chosen = _try_richer(m, g, chosen, candidate, max_condition, alpha, None)
-        notes.append(verdict)
     temps = None if temperatures is None else np.asarray(temperatures, dtype=np.float64)
-    if temps is not None and temps.shape == (m.shape[0],) and np.all(np.isfinite(temps)):
-        span = float(np.ptp(temps))
-        if span >= MIN_TEMPERATURE_SPAN_C:
-            verdict, chosen = _try_richer(m, g, chosen, chosen.model + TEMPERATURE, max_condition, alpha,
-                                          temps)
-            notes.append(f"{verdict} (temperature span {span:.1f} °C)")
-        else:
-            notes.append(f"no temperature slope: the poses span {span:.1f} °C, "
-                         f"{MIN_TEMPERATURE_SPAN_C:g} needed")
+    span = float(np.ptp(temps)) if temps is not None and temps.shape == (m.shape[0],) and np.all(
+        np.isfinite(temps)) else float("nan")
+    suffix = ""
+    if span >= MIN_TEMPERATURE_SPAN_C:
+        # a slope of a few mg/°C over the span would otherwise pass for noise and hide the map
+        verdict, chosen = _try_richer(m, g, chosen, "offset" + TEMPERATURE, max_condition, alpha, temps)
+        notes.append(f"{verdict} (temperature span {span:.1f} °C)")
+        suffix = TEMPERATURE if has_temperature(chosen.model) else ""
+    for candidate in ("scale-offset", "full"):
+        verdict, chosen = _try_richer(m, g, chosen, candidate + suffix, max_condition, alpha,
+                                      temps if suffix else None)
+        notes.append(verdict)
+    if span >= MIN_TEMPERATURE_SPAN_C and not suffix:
+        verdict, chosen = _try_richer(m, g, chosen, chosen.model + TEMPERATURE, max_condition, alpha, temps)
+        notes.append(verdict)
+    elif np.isfinite(span) and span < MIN_TEMPERATURE_SPAN_C:
+        notes.append(f"no temperature slope: the poses span {span:.1f} °C, {MIN_TEMPERATURE_SPAN_C:g} needed")
     return ModelChoice(chosen, f"{chosen.model}: " + "; ".join(notes))
 
 

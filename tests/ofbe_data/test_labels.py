@@ -169,11 +169,11 @@ def test_multi_position_sessions_give_zero_g_offsets(tmp_path):
     # every recording holds its tap-bounded pose, and the still seconds before the first tap and
     # after the last are poses of the same face (up to three per recording, numbered in time)
     per_file = labels.groupby(["session", "recording", "device"])["pose"].agg(["count", "max"])
-    assert len(per_file) == 3 * 9 * 2 and per_file["count"].between(1, 3).all()
+    assert len(per_file) == 3 * 24 * 2 and per_file["count"].between(1, 3).all()
     assert (per_file["max"] == per_file["count"] - 1).all()
     longest = labels.loc[labels.groupby(["session", "recording", "device"])["n_samples"].idxmax()]
     assert (longest["segment_end_s"] - longest["segment_start_s"] > 27.0).all()  # 31–32 s between taps
-    # nine distinct faces (six and three random), most held for three poses: the ladder reaches
+    # 24 distinct directions (six faces and 18 random), most held for three poses: the ladder reaches
     # the full model (1 % scale and 0.3° non-orthogonality errors are far beyond the noise)
     assert set(labels["fit_model"]) == {"full"}
     df = _with_truth(labels, _truth(tmp_path / "mp"))
