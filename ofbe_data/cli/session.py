@@ -54,6 +54,7 @@ from ofbe_data.io.yamlio import YamlDocument
 from ofbe_data.labelling.batch import UsageError, expand_sessions
 from ofbe_data.labelling.checks import MAX_LEVEL_TILT_DEG
 from ofbe_data.labelling.labels import SessionLabels, label_params_from, label_session, read_label_section
+from ofbe_data.labelling.next_pose import report_lines
 
 PROG = "ofbe-session"
 DATA_SUFFIXES = (".csv", ".tsv", ".txt", ".dat", ".log", ".ssv", ".asc", ".bin", ".raw", ".mscip")
@@ -504,6 +505,23 @@ def _file_lines(m: SessionManifest, rid: str, dev: str, rec: Recording, labels: 
     return out, len(bad)
 
 
+def _next_pose_lines(m: SessionManifest, labels: SessionLabels, params: Any) -> list[str]:
+    """Per DUT with labelled poses: the full model's expected SEs from its poses and the next
+    orientations to record (methods.md §8, :func:`ofbe_data.labelling.next_pose.report_lines`)."""
+    out: list[str] = []
+    for dev in m.duts:
+        rows = [r for r in labels.rows if r["device"] == dev.id]
+        if not rows:
+            continue
+        means = np.array([np.asarray(r["_mean"], dtype=np.float64) for r in rows])
+        rms = rows[0].get("fit_residual_rms")
+        with warnings.catch_warnings(), np.errstate(all="ignore"):
+            warnings.simplefilter("ignore")
+            out += report_lines(dev.id, means, m.g_local, rms,
+                                getattr(params, "multi_position_max_condition", 1000.0))
+    return out
+
+
 def _check_one(folder: Path, params: Any) -> bool:
     try:
         m = load_manifest(folder)
@@ -544,6 +562,9 @@ def _check_one(folder: Path, params: Any) -> bool:
                                                    for d in r.files)]
     for w in other:
         print(f"  warning: {w}")
+    if m.kind == "multi-position":
+        for line in _next_pose_lines(m, labels, params):
+            print(f"  {line}")
     pairs = len(labels.rows) + rejected
     if rejected or not labels.rows:
         print(f"  → would not label all: {rejected} rejected, {len(labels.rows)} labelled")
