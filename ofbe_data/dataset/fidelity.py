@@ -84,8 +84,8 @@ def truth_table(truth_dir: str | Path, labels: pd.DataFrame) -> pd.DataFrame:
                                  f"found {exc}") from None
         try:
             d = cache[r.session]["recordings"][r.recording]["devices"][r.device]
-            dev = cache[r.session]["devices"][r.device]
-        except (KeyError, TypeError):
+            dev = cache[r.session].get("devices", {}).get(r.device, {})
+        except (KeyError, TypeError, AttributeError):
             raise TruthError(f"{truth_dir / (r.session + '.json')}: expected recording {r.recording}, device "
                              f"{r.device}, found no such entry") from None
         d = _pose_truth(d, getattr(r, "segment_start_s", None), getattr(r, "segment_end_s", None))

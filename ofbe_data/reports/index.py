@@ -283,6 +283,9 @@ def _fidelity_table(fid: dict[str, Any]) -> list[str]:
     out = ["| error | x (mg) | y (mg) | z (mg) |", "|---|---:|---:|---:|"]
     for name, key in rows:
         out.append(f"| {name} | " + " | ".join(f"{float(fid[key][a]):.4f}" for a in AXES) + " |")
+    if "A_rms_ppm" in fid:
+        out += ["", f"Fitted map A against the truth's ({fid['n_maps']} device fits, each entry): "
+                f"{fid['A_rms_ppm']:.1f} ppm RMS, {fid['A_max_ppm']:.1f} ppm at most."]
     return out
 
 

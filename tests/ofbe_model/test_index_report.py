@@ -82,11 +82,15 @@ def _labels_and_truth(root: Path) -> None:
         "campaign": "sim", "session": "s1", "recording": "rec-01", "device": devices,
         **{f"bias_{a}": bias[:, i] for i, a in enumerate("xyz")},
         **{f"offset_{a}": offset[:, i] for i, a in enumerate("xyz")},
+        # dev-a carries a fitted map 100 ppm off the truth's in one entry; dev-b none
+        **{f"a_{r}{c}": [float(r == c) + (1e-4 if (r, c) == ("x", "y") else 0.0), np.nan]
+           for r in "xyz" for c in "xyz"},
     })
     path = root / "processed" / "labels" / "sim" / "s1.parquet"
     path.parent.mkdir(parents=True)
     frame.to_parquet(path, engine="pyarrow", index=False)
-    truth = {"format": "ofbe-truth/1", "campaign": "sim", "session": "s1", "devices": {},
+    truth = {"format": "ofbe-truth/1", "campaign": "sim", "session": "s1",
+             "devices": {"dev-a": {"A": np.eye(3).tolist()}},
              "recordings": {"rec-01": {"devices": {
                  d: {"apparent_bias": TRUE_BIAS[i].tolist(), "offset": TRUE_OFFSET[i].tolist()}
                  for i, d in enumerate(devices)}}}}
@@ -237,6 +241,9 @@ def test_fidelity_equals_hand_computation(tree):
     assert rows["zero-g offset, RMS"] == pytest.approx(off_rms, abs=1e-4)
     assert rows["zero-g offset, max"] == pytest.approx(off_max, abs=1e-4)
     assert "2 labels" in body and "1 of them with a zero-g offset" in body
+    # by hand: one of nine entries 100 ppm off → RMS 100/3 ppm
+    assert ("Fitted map A against the truth's (1 device fits, each entry): 33.3 ppm RMS, 100.0 ppm at most."
+            in body)
     assert "`real` (real data: no truth)" in body
 
 
