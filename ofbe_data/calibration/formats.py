@@ -97,16 +97,18 @@ def ggir_apply(raw_g: np.ndarray, scale: Sequence[float], offset: Sequence[float
     return (np.asarray(raw_g, dtype=np.float64) + np.asarray(offset)) * np.asarray(scale)
 
 
-def ros_bias_covariance(bias: Sequence[float], std: Sequence[float] | None
+def ros_bias_covariance(bias: Sequence[float], noise_std: Sequence[float] | None
                         ) -> tuple[list[float], list[float]]:
     """The bias to subtract (m/s²) and ``linear_acceleration_covariance`` (9 values, row-major).
 
-    sensor_msgs/Imu: the covariance is row-major about x, y, z; all zeros means "unknown".
-    The diagonal is std² in (m/s²)²; without a std the matrix is all zeros.
+    sensor_msgs/Imu's covariance is that of one measurement (one message's
+    ``linear_acceleration``), row-major about x, y, z; all zeros means "unknown". Its diagonal
+    is therefore the per-sample noise variance, std² in (m/s²)², of the stationary samples the
+    calibration came from, not the uncertainty of the bias; without it the matrix is all zeros.
     """
     cov = [0.0] * 9
-    if std is not None:
-        for i, s in enumerate(std):
+    if noise_std is not None:
+        for i, s in enumerate(noise_std):
             cov[4 * i] = float(s) ** 2
     return [float(b) for b in bias], cov
 
@@ -214,29 +216,48 @@ def kalibr_file(r: CalibrationResult, noise: NoiseEstimate, written: datetime,
     return ("\n".join(lines) + "\n").encode()
 
 
-def ros_file(r: CalibrationResult, written: datetime, frame_id: str = DEFAULT_FRAME_ID) -> bytes:
-    """YAML with the bias to subtract and the ``linear_acceleration_covariance`` of sensor_msgs/Imu."""
-    bias, cov = ros_bias_covariance(r.bias, r.std)
-    lines = [f"# {line}" for line in _header(r, written, "Accelerometer bias for ROS")]
+ROS_NODE = "/**"
+"""Node name of the ROS 2 parameter file: ``/**`` gives the parameters to every node that loads
+the file (``--ros-args --params-file``); ``ofbe-export ros --ros-node NAME`` names one."""
+
+
+def ros_file(r: CalibrationResult, written: datetime, frame_id: str = DEFAULT_FRAME_ID,
+             node: str = ROS_NODE) -> bytes:
+    """A ROS 2 parameter file (``<node>: ros__parameters: …``) with the bias to subtract and the
+    per-sample ``linear_acceleration_covariance`` of sensor_msgs/Imu.
+
+    Every value is one of the types rcl's parameter parser accepts (string, integer, double, or
+    a list of doubles); what is unknown is left out, never written as null or NaN.
+    """
+    bias, cov = ros_bias_covariance(r.bias, r.noise_std)
+    lines = [f"# {line}" for line in _header(r, written, "Accelerometer bias for ROS 2")]
     lines += ["# linear_acceleration_bias [m/s^2, sensor frame]: subtract from sensor_msgs/Imu "
               "linear_acceleration",
-              "# linear_acceleration_covariance [(m/s^2)^2]: row-major 3x3 about x, y, z, diagonal = std^2 "
-              "of the bias" + ("" if r.std is not None
-                               else "; all zeros: std unknown (sensor_msgs/Imu: covariance unknown)")]
+              "# linear_acceleration_covariance [(m/s^2)^2]: row-major 3x3 about x, y, z, the covariance of "
+              "one sample (sensor_msgs/Imu): diagonal = per-sample noise variance over the stationary "
+              "segments" + ("" if r.noise_std is not None
+                            else "; all zeros: unknown (sensor_msgs/Imu: covariance unknown)"),
+              "# linear_acceleration_bias_std [m/s^2]: uncertainty of the bias itself, when known",
+              "# No standard ROS node reads these parameters by name: an IMU driver (or a small node) "
+              "subtracts the bias and copies the covariance into each message, where robot_localization "
+              "and imu_filter_madgwick read it."]
     if not r.scale_known:
         lines.append(f"# {r.scale_note}; ROS corrects the bias only")
     else:
         lines.append("# " + r.scale_note + ": A = " + "; ".join(", ".join(f"{v:.10g}" for v in row)
                                                             for row in r.matrix)
                      + " (rows); a bias subtraction does not apply it: a = A^-1 (f - b)")
-    lines += [f"device: {json.dumps(r.device)}",
-              f"power_cycle: {'null' if r.power_cycle is None else r.power_cycle}",
-              f"frame_id: {json.dumps(frame_id)}",
-              f"bias_kind: {json.dumps(r.bias_kind)}",
-              f"method: {json.dumps(r.method)}",
-              "linear_acceleration_bias:",
-              *(f"  {axis}: {yaml_float(v)}" for axis, v in zip("xyz", bias, strict=True)),
-              "linear_acceleration_covariance: [" + ", ".join(yaml_float(v) for v in cov) + "]"]
+    params = [f"device: {json.dumps(r.device)}"]
+    if r.power_cycle is not None:
+        params.append(f"power_cycle: {int(r.power_cycle)}")
+    params += [f"frame_id: {json.dumps(frame_id)}", f"bias_kind: {json.dumps(r.bias_kind)}",
+               f"method: {json.dumps(r.method)}",
+               "linear_acceleration_bias: [" + ", ".join(yaml_float(v) for v in bias) + "]"]
+    uncertainty = r.bias_se if r.bias_se is not None else r.std
+    if uncertainty is not None:
+        params.append("linear_acceleration_bias_std: [" + ", ".join(yaml_float(v) for v in uncertainty) + "]")
+    params.append("linear_acceleration_covariance: [" + ", ".join(yaml_float(v) for v in cov) + "]")
+    lines += [f"{json.dumps(node)}:", "  ros__parameters:", *(f"    {p}" for p in params)]
     return ("\n".join(lines) + "\n").encode()
 
 

@@ -126,6 +126,9 @@ class CalibrationResult:
         A, row-major (3 × 3); the identity when ``scale_known`` is False.
     bias_se
         Standard error of ``bias`` per axis, m/s², when the fit gave one.
+    noise_std
+        Standard deviation of one sample about its mean per axis, m/s², over the stationary
+        segments (rms of the label rows' ``std_x/y/z``); None when unknown (predictions).
     g_local
         Local gravity, m/s².
     fs_hz
@@ -175,6 +178,7 @@ class CalibrationResult:
     raw_files: tuple[str, ...] = ()
     matrix: tuple[tuple[float, float, float], ...] = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
     bias_se: tuple[float, float, float] | None = None
+    noise_std: tuple[float, float, float] | None = None
 
     @property
     def what(self) -> str:
@@ -311,6 +315,8 @@ def _group_result(device: str, pc: int, rows: pd.DataFrame, files: list[Path], h
     scale = _vec(imucal_from_matrix(matrix)[0].diagonal())
     ses = _column(rows, ("offset_x_se", "offset_y_se", "offset_z_se"))
     bias_se = _vec(ses[0]) if kind == ZERO_G_OFFSET and np.all(np.isfinite(ses)) else None
+    stds = _column(rows, ("std_x", "std_y", "std_z"))
+    noise_std = _vec(np.sqrt(np.mean(stds**2, axis=0))) if np.all(np.isfinite(stds)) else None
     temps = _column(rows, ("temperature_c",))[:, 0]
     temps = temps[np.isfinite(temps)]
     fs = _column(rows, ("fs_hz",))[:, 0]
@@ -331,7 +337,7 @@ def _group_result(device: str, pc: int, rows: pd.DataFrame, files: list[Path], h
         recordings=tuple(f"{r.session}/{r.recording}" for r in rows.itertuples(index=False)),
         segments=tuple(segs), stem=f"{device}.pc{pc}",
         raw_files=tuple(sorted({Path(s.raw_file).name for s in segs})),
-        matrix=tuple(_vec(row) for row in matrix), bias_se=bias_se)
+        matrix=tuple(_vec(row) for row in matrix), bias_se=bias_se, noise_std=noise_std)
 
 
 def results_from_labels(path: str | Path) -> Collected:

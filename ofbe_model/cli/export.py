@@ -135,7 +135,7 @@ def _kalibr(args: argparse.Namespace) -> list[ExportFile]:
 def _ros(args: argparse.Namespace) -> list[ExportFile]:
     collected, _ = _collect(args)
     now = written_time()
-    return _calibration_files(collected, "ros", lambda r: fmt.ros_file(r, now, args.frame_id))
+    return _calibration_files(collected, "ros", lambda r: fmt.ros_file(r, now, args.frame_id, args.ros_node))
 
 
 def _ggir(args: argparse.Namespace) -> list[ExportFile]:
@@ -315,6 +315,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--raw", type=Path,
                    help="the campaign's raw folder: recording start times, and the segments kalibr analyses")
     p.add_argument("--frame-id", default=fmt.DEFAULT_FRAME_ID, help="ros: frame_id (default %(default)s)")
+    p.add_argument("--ros-node", default=fmt.ROS_NODE,
+                   help="ros: the node the parameters are for (default %(default)s: every node that loads "
+                        "the file)")
     p.add_argument("--rostopic", default=fmt.DEFAULT_ROSTOPIC, help="kalibr: rostopic (default %(default)s)")
     p.add_argument("--dataset", type=Path, help="tflite: the dataset the model was trained on")
     p.add_argument("--protocol", help="tflite: with --fold, only that fold's training windows")

@@ -231,18 +231,48 @@ def test_ggir_writes_a_row_per_raw_file(campaign, apparent_labels) -> None:
 # ----------------------------------------------------------------------------- ROS
 
 
-def test_ros_yaml_parses_back_exactly(apparent_labels, campaign) -> None:
+def _ros2_parameters(data: bytes, node: str = "/**") -> dict:
+    """The parameters of ``node`` in a ROS 2 parameter file, checked as rcl's YAML parameter
+    parser (rcl_yaml_param_parser/src/parse.c) accepts them: a node name mapping to
+    ``ros__parameters``, and every value a bool, integer, double, string or a homogeneous list of
+    one of those (no null: the parser has no type for it)."""
+    doc = yaml.safe_load(data)
+    assert list(doc) == [node] and list(doc[node]) == ["ros__parameters"]
+    params = doc[node]["ros__parameters"]
+    for key, value in params.items():
+        values = value if isinstance(value, list) else [value]
+        assert values and all(v is not None for v in values), key
+        assert len({type(v) for v in values}) == 1 and isinstance(values[0], (bool, int, float, str)), key
+    return params
+
+
+def test_ros_parameter_file_parses_back_exactly(apparent_labels, campaign) -> None:
     r = results_from_labels(apparent_labels).results[0]
-    doc = yaml.safe_load(fmt.ros_file(r, WRITTEN, frame_id="dut_link"))
+    doc = _ros2_parameters(fmt.ros_file(r, WRITTEN, frame_id="dut_link"))
     assert doc["device"] == "sparkfun-1" and doc["power_cycle"] == 1 and doc["frame_id"] == "dut_link"
     assert doc["bias_kind"] == APPARENT
-    assert [doc["linear_acceleration_bias"][a] for a in "xyz"] == list(r.bias)
+    assert doc["linear_acceleration_bias"] == list(r.bias)
+    assert doc["linear_acceleration_bias_std"] == list(r.std)
+    # sensor_msgs/Imu: the covariance of one measurement, the per-sample noise, not the bias' spread
+    labels = read_labels(apparent_labels)
+    rows = labels[(labels.device == r.device) & (labels.power_cycle == r.power_cycle)]
+    noise = np.sqrt(np.mean(rows[["std_x", "std_y", "std_z"]].to_numpy() ** 2, axis=0))
     cov = doc["linear_acceleration_covariance"]
-    assert len(cov) == 9 and cov[0] == r.std[0] ** 2 and cov[4] == r.std[1] ** 2 and cov[8] == r.std[2] ** 2
+    assert len(cov) == 9 and np.allclose([cov[0], cov[4], cov[8]], noise**2, rtol=1e-12)
     assert [cov[i] for i in (1, 2, 3, 5, 6, 7)] == [0.0] * 6
     offset = results_from_labels(campaign / "labels" / "mp").results[0]
-    doc = yaml.safe_load(fmt.ros_file(offset, WRITTEN))
-    assert doc["linear_acceleration_covariance"] == [0.0] * 9 and doc["frame_id"] == fmt.DEFAULT_FRAME_ID
+    doc = _ros2_parameters(fmt.ros_file(offset, WRITTEN, node="imu_driver"), node="imu_driver")
+    assert doc["frame_id"] == fmt.DEFAULT_FRAME_ID and doc["linear_acceleration_covariance"][0] > 0
+    assert doc["linear_acceleration_bias_std"] == list(offset.bias_se)  # the fit's standard errors
+
+
+def test_ros_file_of_a_prediction_leaves_the_unknown_out(tmp_path) -> None:
+    (tmp_path / "p.json").write_text(json.dumps({"results": [
+        {"device": "d", "file": "raw/s/rec/d.csv", "g_local": 9.8, "bias_m_s2": [0.1, -0.2, 0.3]}]}))
+    r = results_from_predictions(tmp_path / "p.json").results[0]
+    doc = _ros2_parameters(fmt.ros_file(r, WRITTEN))
+    assert "power_cycle" not in doc and "linear_acceleration_bias_std" not in doc
+    assert doc["linear_acceleration_covariance"] == [0.0] * 9  # unknown, as sensor_msgs/Imu says
 
 
 @pytest.mark.parametrize("x", [0.0, -0.0, 1e-5, -2.5e-7, 1e20, 5e-324, 0.1 + 0.2, -0.331111111999999, 123.0])

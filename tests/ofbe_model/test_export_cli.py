@@ -123,7 +123,8 @@ def test_outputs_are_never_partial_or_silently_replaced(tmp_path, campaign, caps
     assert sorted(p.name for p in out.iterdir()) == ["sparkfun-1.pc1.ros.yaml"]  # nothing else written
     assert (out / "sparkfun-1.pc1.ros.yaml").read_text() == "mine"
     assert _run(capsys, "ros", campaign / "labels" / "mp", "--out", out, "--force")[0] == 0
-    assert yaml.safe_load((out / "sparkfun-1.pc1.ros.yaml").read_text())["power_cycle"] == 1
+    assert yaml.safe_load((out / "sparkfun-1.pc1.ros.yaml").read_text())["/**"]["ros__parameters"][
+        "power_cycle"] == 1
     code, _, err = _run(capsys, "json", campaign / "labels" / "mp", "--out", tmp_path / "one.json")
     assert code == 2 and "expected a folder for 2 files" in err and not (tmp_path / "one.json").exists()
 
@@ -165,11 +166,13 @@ def test_predictions_give_one_file_per_estimate(tmp_path, predictions, capsys) -
     files = sorted((tmp_path / "ros").iterdir())
     assert len(files) == len(good) == 6
     assert files[0].name == "sparkfun-1.ga-pc001_rec-01_sparkfun-1.ros.yaml"
-    back = yaml.safe_load(files[0].read_text())
+    back = yaml.safe_load(files[0].read_text())["/**"]["ros__parameters"]
     entry = next(r for r in good if r["device"] == "sparkfun-1" and "ga-pc001" in r["file"])
-    assert [back["linear_acceleration_bias"][a] for a in "xyz"] == entry["bias_m_s2"]
-    assert back["linear_acceleration_covariance"][::4] == [v * v for v in entry["std_m_s2"]]
-    assert back["power_cycle"] is None and back["bias_kind"] == "apparent"
+    assert back["linear_acceleration_bias"] == entry["bias_m_s2"]
+    # a prediction knows the uncertainty of its bias, not the per-sample noise of the recording
+    assert back["linear_acceleration_bias_std"] == entry["std_m_s2"]
+    assert back["linear_acceleration_covariance"] == [0.0] * 9
+    assert "power_cycle" not in back and back["bias_kind"] == "apparent"
     code, _, err = _run(capsys, "json", predictions, "--out", tmp_path / "json")
     first = json.loads(sorted((tmp_path / "json").iterdir())[0].read_text())
     assert code == 0 and first["method"] == "mean-minus-gravity" and first["model"] == "stub.json"
