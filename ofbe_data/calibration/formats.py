@@ -78,8 +78,13 @@ def imucal_accelerometer(bias: Sequence[float], matrix: Any = None
     return k_a, r_a, np.asarray(bias, dtype=np.float64)
 
 
-def ggir_coefficients(bias: Sequence[float], matrix: Any = None, g0: float = G0
-                      ) -> tuple[np.ndarray, np.ndarray]:
+GGIR_CONVENTIONS = ("unit-sphere", "local")
+"""``--g-convention`` of the GGIR export: GGIR's own (calibrated readings at rest on the sphere of
+radius 1 g, as its auto-calibration makes them) or ofbe's (radius g_local / g0)."""
+
+
+def ggir_coefficients(bias: Sequence[float], matrix: Any = None, g0: float = G0,
+                      unit_sphere_g: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(scale, offset) of GGIR's calibration from ofbe's b (m/s²) and A.
 
     GGIR applies ``scale(x, center = -offset, scale = 1/scale)``, i.e.
@@ -87,9 +92,16 @@ def ggir_coefficients(bias: Sequence[float], matrix: Any = None, g0: float = G0
     ``f_g = f / g0`` and a per-axis gain s_i = ‖A_i,:‖: ``a / g0 = (f − b) / (g0 · s)`` holds
     for ``offset = −b / g0`` (g, the opposite sign of ofbe's b) and ``scale = 1 / s``. GGIR
     has no cross-axis terms; they are left out.
+
+    With ``unit_sphere_g`` (the local gravity, m/s²) the scale is GGIR's own convention
+    instead: ``a_g = a / g_local``, a resting reading of norm 1, which multiplies the scale by
+    g0 / g_local (the offset, in g of the reading's unit, is the same).
     """
     k_a, _ = imucal_from_matrix(np.eye(3) if matrix is None else matrix)
-    return 1.0 / k_a.diagonal(), -np.asarray(bias, dtype=np.float64) / g0
+    scale = 1.0 / k_a.diagonal()
+    if unit_sphere_g is not None:
+        scale = scale * (g0 / unit_sphere_g)
+    return scale, -np.asarray(bias, dtype=np.float64) / g0
 
 
 def ggir_apply(raw_g: np.ndarray, scale: Sequence[float], offset: Sequence[float]) -> np.ndarray:
@@ -261,19 +273,30 @@ def ros_file(r: CalibrationResult, written: datetime, frame_id: str = DEFAULT_FR
     return ("\n".join(lines) + "\n").encode()
 
 
-def ggir_file(r: CalibrationResult, written: datetime, g0: float = G0) -> bytes:
+def ggir_file(r: CalibrationResult, written: datetime, g0: float = G0,
+              convention: str = "unit-sphere") -> bytes:
     """A ``backup.cal.coef`` CSV for GGIR, one row per raw file of the result.
 
     GGIR looks a file's coefficients up by its ``filename``; rows for other recordings of
-    the same device and power cycle are copies with their file name.
+    the same device and power cycle are copies with their file name. Every numeric cell holds
+    a number (GGIR reads an empty one as NA and fails on it).
     """
-    scale, offset = ggir_coefficients(r.bias, r.matrix, g0)
+    if convention not in GGIR_CONVENTIONS:
+        raise ValueError(f"convention: expected one of {', '.join(GGIR_CONVENTIONS)}, found {convention!r}")
+    unit_sphere = convention == "unit-sphere"
+    scale, offset = ggir_coefficients(r.bias, r.matrix, g0, r.g_local if unit_sphere else None)
+    sphere = (f"GGIR's unit sphere: calibrated readings at rest have norm 1 (scale includes g0/g_local, "
+              f"g_local = {r.g_local:.6f} m/s^2)" if unit_sphere
+              else f"ofbe's local convention: calibrated readings at rest have norm g_local/g0 = "
+                   f"{r.g_local / g0:.6f}")
+    temp_note = ("meantempcal is the mean temperature of the segments" if r.temperature_c is not None
+                 else "meantempcal 0: temperature unknown (the temperature offsets are 0: no effect)")
     qc = (f"ofbe {__version__} export {_utc(written)}: bias_kind {r.bias_kind}, {_kind_words(r)}; "
-          f"offset = -b/g0 (g0 = {g0} m/s^2); {r.scale_note}; no temperature model")
+          f"offset = -b/g0 (g0 = {g0} m/s^2); {sphere}; {r.scale_note}; no temperature model; {temp_note}")
     buf = io.StringIO()
     out = csv.writer(buf, lineterminator="\n")
     out.writerow(GGIR_COLUMNS)
-    temp = "" if r.temperature_c is None else repr(float(r.temperature_c))
+    temp = repr(float(r.temperature_c)) if r.temperature_c is not None else "0.0"
     for name in r.raw_files or (r.stem,):
         out.writerow([name, *(repr(float(v)) for v in scale), *(repr(float(v)) for v in offset),
                       "0.0", "0.0", "0.0", temp, "FALSE", qc, r.device,

@@ -141,7 +141,8 @@ def _ros(args: argparse.Namespace) -> list[ExportFile]:
 def _ggir(args: argparse.Namespace) -> list[ExportFile]:
     collected, _ = _collect(args)
     now = written_time()
-    return _calibration_files(collected, "ggir", lambda r: fmt.ggir_file(r, now))
+    return _calibration_files(collected, "ggir",
+                              lambda r: fmt.ggir_file(r, now, convention=args.g_convention))
 
 
 def _json(args: argparse.Namespace) -> list[ExportFile]:
@@ -318,6 +319,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--ros-node", default=fmt.ROS_NODE,
                    help="ros: the node the parameters are for (default %(default)s: every node that loads "
                         "the file)")
+    p.add_argument("--g-convention", choices=fmt.GGIR_CONVENTIONS, default="unit-sphere",
+                   help="ggir: GGIR's unit sphere (default: resting readings of norm 1 g) or ofbe's local "
+                        "convention (norm g_local/g0)")
     p.add_argument("--rostopic", default=fmt.DEFAULT_ROSTOPIC, help="kalibr: rostopic (default %(default)s)")
     p.add_argument("--dataset", type=Path, help="tflite: the dataset the model was trained on")
     p.add_argument("--protocol", help="tflite: with --fold, only that fold's training windows")

@@ -202,22 +202,63 @@ def test_imucal_corrects_as_ofbe_does(tmp_path, campaign, scaled_labels, scaled)
 # ----------------------------------------------------------------------------- GGIR
 
 
+def _ggir_backup_coefficients(data: bytes, filename: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """What GGIR's g.part1 (R/g.part1.R, main_part1, the ``backup.cal.coef`` block) takes from the
+    file for one data file: ``bcc.data = read.csv(...)``; the row whose ``filename`` equals the
+    file's name; ``C$scale``, ``C$offset``, ``C$tempoffset`` as ``as.numeric`` of the columns named
+    ``scale.x|y|z``, ``offset.x|y|z``, ``temperature.offset.x|y|z`` in file order; and
+    ``meantempcal`` (read by name in GGIR versions that keep it with the coefficients)."""
+    bcc = pd.read_csv(io.BytesIO(data))
+    rows = bcc.index[bcc["filename"].astype(str) == filename]
+    assert len(rows) >= 1, f"GGIR finds no row for {filename}"
+    row = bcc.loc[rows[0]]
+    cols = list(bcc.columns)
+
+    def named(names: tuple[str, ...]) -> np.ndarray:
+        values = pd.to_numeric(row[[c for c in cols if c in names]], errors="coerce").to_numpy(float)
+        assert values.shape == (3,) and np.all(np.isfinite(values)), names  # NA breaks GGIR
+        return values
+
+    meantempcal = float(pd.to_numeric(row["meantempcal"], errors="coerce"))
+    assert np.isfinite(meantempcal)  # GGIR: "the condition has length > 1" on an NA here
+    return (named(("scale.x", "scale.y", "scale.z")), named(("offset.x", "offset.y", "offset.z")),
+            named(("temperature.offset.x", "temperature.offset.y", "temperature.offset.z")), meantempcal)
+
+
 @pytest.mark.parametrize("scaled", [False, True])
 def test_ggir_formula_equals_ofbe_correction(campaign, scaled_labels, scaled) -> None:
     r = results_from_labels(scaled_labels if scaled else campaign / "labels" / "mp").results[1]
     assert r.scale_known
-    table = pd.read_csv(io.BytesIO(fmt.ggir_file(r, WRITTEN)))
+    table = pd.read_csv(io.BytesIO(fmt.ggir_file(r, WRITTEN, convention="local")))
     assert tuple(table.columns) == fmt.GGIR_COLUMNS and table.columns[0] == "filename"
     assert list(table["filename"]) == ["sparkfun-1.csv"] and list(table["bias_kind"]) == [ZERO_G_OFFSET]
     assert "bias_kind zero-g-offset" in table["QCmessage"][0]
-    row = table.iloc[0]
-    scale_g = row[["scale.x", "scale.y", "scale.z"]].to_numpy(float)
-    offset_g = row[["offset.x", "offset.y", "offset.z"]].to_numpy(float)
-    assert np.all(row[["temperature.offset.x", "temperature.offset.y", "temperature.offset.z"]] == 0)
+    scale_g, offset_g, temp_g, _ = _ggir_backup_coefficients(fmt.ggir_file(r, WRITTEN, convention="local"),
+                                                             "sparkfun-1.csv")
+    assert np.all(temp_g == 0)
     assert np.all(np.sign(offset_g) == -np.sign(r.bias))  # GGIR adds its offset
     raw = _one_raw(campaign, "mp", "mp-pc002", "sparkfun-1")
     ggir = fmt.ggir_apply(raw / G0, scale_g, offset_g)  # (raw_g + offset) * scale, in g
     assert np.max(np.abs(ggir * G0 - fmt.ofbe_correct(raw, r.bias, r.matrix))) < 1e-12
+
+
+def test_ggir_default_is_its_own_unit_sphere_and_no_cell_is_empty(campaign, apparent_labels) -> None:
+    r = results_from_labels(campaign / "labels" / "mp").results[1]
+    data = fmt.ggir_file(r, WRITTEN)  # default: GGIR's convention
+    scale_g, offset_g, _, meantempcal = _ggir_backup_coefficients(data, "sparkfun-1.csv")
+    assert r.temperature_c is None and meantempcal == 0.0 and "temperature unknown" in data.decode()
+    raw = _one_raw(campaign, "mp", "mp-pc002", "sparkfun-1")
+    ggir = fmt.ggir_apply(raw / G0, scale_g, offset_g)
+    # a resting reading has norm 1 g after GGIR's correction, as its own auto-calibration makes it
+    assert np.max(np.abs(ggir * r.g_local - fmt.ofbe_correct(raw, r.bias, r.matrix))) < 1e-12
+    still = np.linalg.norm(ggir.mean(axis=0))
+    assert abs(still - 1.0) < 2e-3 and abs(still - r.g_local / G0) > abs(still - 1.0)
+    # every numeric cell of every export holds a number
+    for result in results_from_labels(apparent_labels).results:
+        table = pd.read_csv(io.BytesIO(fmt.ggir_file(result, WRITTEN)))
+        numeric = [c for c in fmt.GGIR_COLUMNS if c.startswith(("scale.", "offset.", "temperature.")) or
+                   c == "meantempcal"]
+        assert table[numeric].notna().all().all()
 
 
 def test_ggir_writes_a_row_per_raw_file(campaign, apparent_labels) -> None:
