@@ -30,3 +30,33 @@ def write_text(tmp_path: Path):
         return path
 
     return _write
+
+
+def imucal_still_norms(result, raw: Path, folder: Path, min_segment_s: float = 0.0) -> list[float]:
+    """Export ``result`` (a :class:`~ofbe_data.calibration.results.CalibrationResult`) as an imucal
+    file into ``folder``, load it with imucal's own ``load_calibration_info``, apply its
+    ``calibrate`` to the raw samples of each of the result's stationary segments (at least
+    ``min_segment_s`` long) under the campaign folder ``raw``, and return the norm of each
+    segment's mean calibrated reading, m/s²."""
+    from datetime import UTC, datetime
+
+    import numpy as np
+    from imucal.management import load_calibration_info
+
+    from ofbe_data.calibration import formats as fmt
+    from ofbe_data.io.formats import read_device_file
+    from ofbe_data.io.manifest import load_manifest
+
+    path = folder / f"{result.stem}.imucal.json"
+    path.write_bytes(fmt.imucal_file(result, datetime(2025, 1, 1, tzinfo=UTC)))
+    cal = load_calibration_info(path)
+    norms = []
+    for seg in (s for s in result.segments if s.end_s - s.start_s >= min_segment_s):
+        m = load_manifest(raw / seg.session)
+        rec = next(r for r in m.recordings if r.id == seg.recording)
+        acc = read_device_file(m.file_path(rec, result.device), m.devices[result.device])
+        still = (acc.t >= seg.start_s) & (acc.t <= seg.end_s)
+        calibrated = cal.calibrate(acc=acc.acc[still], gyr=np.zeros((int(still.sum()), 3)),
+                                   acc_unit="m/s^2", gyr_unit="deg/s")[0]
+        norms.append(float(np.linalg.norm(calibrated.mean(axis=0))))
+    return norms

@@ -19,10 +19,7 @@ import pandas as pd
 import pytest
 from scipy.optimize import least_squares
 
-from ofbe_data.calibration import formats as fmt
 from ofbe_data.calibration.results import results_from_labels
-from ofbe_data.io.formats import read_device_file
-from ofbe_data.io.manifest import load_manifest
 from ofbe_data.labelling.batch import expand_sessions, label_sessions
 from ofbe_data.labelling.conventions import (
     imucal_from_matrix,
@@ -35,6 +32,7 @@ from ofbe_data.labelling.labels import LabelParams
 from ofbe_data.labelling.multiposition import choose_fit, fit_poses, min_poses
 from ofbe_data.labelling.store import read_labels
 from ofbe_data.simulator import load_config, simulate_campaign
+from tests.conftest import imucal_still_norms
 
 MG = 9.80665e-3
 G = 9.80
@@ -259,23 +257,12 @@ def test_imucal_applies_the_full_model_to_the_still_readings(tmp_path) -> None:
     readings of every pose on the sphere of radius g_local (0.2 mg rms). The poses between the
     taps (30-40 s) are used: the still second or two either side of a tap averages 3.5 mg of
     noise to 0.3 mg alone."""
-    imucal_management = pytest.importorskip("imucal.management")
+    pytest.importorskip("imucal.management")
     labels, raw = _label(tmp_path, {"sessions": 2, **NO_DRIFT}, seed=34)
     assert set(labels["fit_model"]) == {"full"}
     for result in results_from_labels(tmp_path / "labels" / "mp").results:
         assert result.scale_known and not np.allclose(np.array(result.matrix), np.diag(result.scale))
-        path = tmp_path / f"{result.stem}.json"
-        path.write_bytes(fmt.imucal_file(result, pd.Timestamp("2025-01-01", tz="UTC").to_pydatetime()))
-        cal = imucal_management.load_calibration_info(path)
-        norms = []
-        for seg in (s for s in result.segments if s.end_s - s.start_s >= 20.0):
-            m = load_manifest(raw / seg.session)
-            rec = next(r for r in m.recordings if r.id == seg.recording)
-            acc = read_device_file(m.file_path(rec, result.device), m.devices[result.device])
-            still = (acc.t >= seg.start_s) & (acc.t <= seg.end_s)
-            calibrated = cal.calibrate(acc=acc.acc[still], gyr=np.zeros((int(still.sum()), 3)),
-                                       acc_unit="m/s^2", gyr_unit="deg/s")[0]
-            norms.append(np.linalg.norm(calibrated.mean(axis=0)))
+        norms = imucal_still_norms(result, raw, tmp_path, min_segment_s=20.0)
         assert len(norms) >= 24
         err = (np.array(norms) - result.g_local) / MG
         assert np.sqrt(np.mean(err**2)) <= 0.2, np.sqrt(np.mean(err**2))
