@@ -109,9 +109,8 @@ def derived_se(func: Callable[[np.ndarray], np.ndarray], x: np.ndarray, cov: np.
 def empty_columns() -> dict[str, float | None]:
     """Every calibration-map column of a label row, missing (None: nothing fitted)."""
     out: dict[str, float | None] = {}
-    for name in (*MATRIX_COLUMNS, *(f"scale_{a}" for a in AXES), *(f"imutk_s_{a}" for a in AXES),
-                 *(f"imutk_mis_{n}" for n in ANGLE_NAMES), *(f"offset_{a}" for a in AXES),
-                 *(f"temp_slope_{a}" for a in AXES)):
+    for name in (*MATRIX_COLUMNS, *(f"scale_{a}" for a in AXES), *IMUTK_COLUMNS,
+                 *(f"offset_{a}" for a in AXES), *TEMPERATURE_COLUMNS):
         out[name] = None
         out[name + "_se"] = None
     out["temp_ref_c"] = None
@@ -119,7 +118,7 @@ def empty_columns() -> dict[str, float | None]:
 
 
 def map_columns(matrix: np.ndarray, matrix_se: np.ndarray) -> dict[str, float]:
-    """The A, scale and imu_tk columns of a fitted map, with the given standard errors.
+    """The ``a_*`` columns of a fitted map A, with the given standard errors.
 
     Parameters
     ----------
@@ -131,8 +130,8 @@ def map_columns(matrix: np.ndarray, matrix_se: np.ndarray) -> dict[str, float]:
     Returns
     -------
     dict
-        ``a_*``/``a_*_se`` only; the scale and imu_tk columns need the covariance and are
-        filled by the callers through :func:`derived_columns`.
+        ``a_*``/``a_*_se``; the scale and imu_tk columns need the covariance and come from
+        :func:`scale_columns` and :func:`imutk_columns`.
     """
     out = {}
     for i, r in enumerate(AXES):
@@ -142,9 +141,9 @@ def map_columns(matrix: np.ndarray, matrix_se: np.ndarray) -> dict[str, float]:
     return out
 
 
-def derived_columns(to_matrix: Callable[[np.ndarray], np.ndarray], x: np.ndarray, cov: np.ndarray,
-                    fit_angles: bool) -> dict[str, float]:
-    """``scale_*`` (row norms of A) and imu_tk's ``imutk_s_*``/``imutk_mis_*``, with standard errors.
+def scale_columns(to_matrix: Callable[[np.ndarray], np.ndarray], x: np.ndarray,
+                  cov: np.ndarray) -> dict[str, float]:
+    """``scale_*`` (the row norms of A, imucal's K_a) with their standard errors.
 
     Parameters
     ----------
@@ -152,23 +151,35 @@ def derived_columns(to_matrix: Callable[[np.ndarray], np.ndarray], x: np.ndarray
         Maps the (P,) fitted parameters to A (3, 3).
     x, cov
         The parameters and their covariance.
-    fit_angles
-        Whether the model fits non-orthogonality (else the angle columns stay NaN).
     """
     def scales(p: np.ndarray) -> np.ndarray:
         return imucal_from_matrix(to_matrix(p))[0].diagonal().copy()
 
+    k, k_se = scales(x), derived_se(scales, x, cov)
+    out: dict[str, float] = {}
+    for i, a in enumerate(AXES):
+        out[f"scale_{a}"], out[f"scale_{a}_se"] = float(k[i]), float(k_se[i])
+    return out
+
+
+def imutk_columns(to_matrix: Callable[[np.ndarray], np.ndarray], x: np.ndarray,
+                  cov: np.ndarray) -> dict[str, float]:
+    """imu_tk's ``imutk_s_*`` and ``imutk_mis_*`` of A's triangular part, with standard errors,
+    for a map whose parameters are not imu_tk's own (the campaign fit's nine entries).
+
+    Parameters
+    ----------
+    to_matrix
+        Maps the (P,) fitted parameters to A (3, 3).
+    x, cov
+        The parameters and their covariance.
+    """
     def imutk(p: np.ndarray) -> np.ndarray:
         s, angles = imutk_from_matrix(to_matrix(p))
         return np.concatenate([s, angles])
 
-    out: dict[str, float] = {}
-    k, k_se = scales(x), derived_se(scales, x, cov)
     t, t_se = imutk(x), derived_se(imutk, x, cov)
-    for i, a in enumerate(AXES):
-        out[f"scale_{a}"], out[f"scale_{a}_se"] = float(k[i]), float(k_se[i])
-        out[f"imutk_s_{a}"], out[f"imutk_s_{a}_se"] = float(t[i]), float(t_se[i])
-    if fit_angles:
-        for i, n in enumerate(ANGLE_NAMES):
-            out[f"imutk_mis_{n}"], out[f"imutk_mis_{n}_se"] = float(t[3 + i]), float(t_se[3 + i])
+    out: dict[str, float] = {}
+    for i, name in enumerate(IMUTK_COLUMNS):
+        out[name], out[f"{name}_se"] = float(t[i]), float(t_se[i])
     return out

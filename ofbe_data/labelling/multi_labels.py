@@ -19,7 +19,7 @@ import numpy as np
 
 from ofbe_data.io.manifest import DeviceSpec
 from ofbe_data.io.recording import Recording
-from ofbe_data.labelling.conventions import derived_columns, derived_se, empty_columns, map_columns
+from ofbe_data.labelling.conventions import derived_se, empty_columns, map_columns, scale_columns
 from ofbe_data.labelling.labels import (
     NO_SEGMENT,
     UNDETERMINED,
@@ -60,7 +60,8 @@ def _fixed_entries(model: str) -> np.ndarray:
 
 def pose_fit_columns(choice: ModelChoice) -> dict[str, Any]:
     """The label columns of a session's pose fit: every fitted parameter with its standard
-    error, A with the scales and imu_tk's parameters derived from it, and the model's record.
+    error (imu_tk's s and angles are the fit's own unknowns), A and the scales derived from
+    them, and the model's record.
 
     Parameters of the ladder that the chosen model does not fit stay missing (None); A and the
     scales are missing for the ``offset`` model, which fits no map.
@@ -78,7 +79,7 @@ def pose_fit_columns(choice: ModelChoice) -> dict[str, Any]:
     if base_model(model) != "offset":
         matrix_se = derived_se(lambda x: to_matrix(x).ravel(), fit.params, fit.covariance).reshape(3, 3)
         cols.update(map_columns(fit.matrix, np.where(_fixed_entries(model), np.nan, matrix_se)))
-        cols.update(derived_columns(to_matrix, fit.params, fit.covariance, base_model(model) == "full"))
+        cols.update(scale_columns(to_matrix, fit.params, fit.covariance))
     if has_temperature(model):
         cols["temp_ref_c"] = fit.temp_ref_c
     cols.update({"fit_model": model, "fit_model_reason": choice.reason, "fit_condition": float(fit.condition),

@@ -38,7 +38,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.stats import f as f_distribution
 
-from ofbe_data.labelling.conventions import ANGLE_NAMES, imutk_matrix
+from ofbe_data.labelling.conventions import ANGLE_NAMES, imutk_matrix, matrix_from_imutk
 
 BASE_MODELS: dict[str, int] = {"offset": 3, "scale-offset": 6, "full": 9}
 """The ladder's models and their number of unknowns, simplest first."""
@@ -220,7 +220,8 @@ def _unpack(x: np.ndarray, model: str) -> _Unpacked:
 
 def map_from_params(x: np.ndarray, model: str) -> np.ndarray:
     """ofbe's output-referred A = (T·K)⁻¹ from the fitted unknowns ``x`` of ``model``."""
-    return np.linalg.inv(_unpack(np.asarray(x, dtype=np.float64), model).m)
+    parts = _unpack(np.asarray(x, dtype=np.float64), model)
+    return matrix_from_imutk(parts.s, parts.angles)
 
 
 def _corrected(x: np.ndarray, means: np.ndarray, dtemp: np.ndarray,

@@ -28,9 +28,10 @@ from ofbe_data.labelling.conventions import (
     IMUTK_COLUMNS,
     MATRIX_COLUMNS,
     TEMPERATURE_COLUMNS,
-    derived_columns,
     empty_columns,
+    imutk_columns,
     map_columns,
+    scale_columns,
 )
 from ofbe_data.labelling.labels import REJECTIONS_FORMAT, LabelParams, SessionLabels, provenance
 
@@ -121,7 +122,8 @@ def campaign_map_columns(fit: DeviceFit) -> dict[str, Any]:
     cov = fit.matrix_covariance()
     columns: dict[str, Any] = empty_columns()
     columns.update(map_columns(fit.A, np.sqrt(np.maximum(np.diag(cov), 0.0)).reshape(3, 3)))
-    columns.update(derived_columns(lambda x: x.reshape(3, 3), fit.A.ravel(), cov, True))
+    for columns_of in (scale_columns, imutk_columns):
+        columns.update(columns_of(lambda x: x.reshape(3, 3), fit.A.ravel(), cov))
     columns.update({"fit_model": "campaign", "fit_condition": fit.condition,
                     "fit_model_reason": f"campaign fit over {fit.n_recordings} recordings in "
                                         f"{fit.n_power_cycles} power cycles",
