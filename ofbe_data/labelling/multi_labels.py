@@ -200,7 +200,7 @@ def label_multi_position(out: SessionLabels, recordings: RecordingSet, params: L
     recordings
         Every recording of the session, read.
     params
-        Labelling parameters (``poses``, ``multi_position_model``,
+        Labelling parameters (``poses``, ``fit_model``, ``fit_alpha``,
         ``multi_position_max_condition`` and the stationary-segment checks).
     keep_segments
         Keep each row's samples under ``"_segment"``.
