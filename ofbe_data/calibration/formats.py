@@ -10,7 +10,7 @@ by ``a = A⁻¹ (f − b)`` (:func:`ofbe_correct`). Per tool (derivations in doc
   cross-axis terms, so a non-orthogonality A carries is not applied there);
 - ROS: the bias to subtract, m/s², and the ``linear_acceleration_covariance`` diagonal std²
   (:func:`ros_bias_covariance`);
-- Kalibr: noise density and random walk only (no bias), see
+- Kalibr: accelerometer and gyroscope noise density and random walk (no bias), see
   :mod:`ofbe_data.calibration.noise`;
 - ofbe JSON ``ofbe-calibration/1``: b and its std as they are.
 
@@ -31,8 +31,8 @@ from typing import Any
 import numpy as np
 
 from ofbe_data import __version__
-from ofbe_data.calibration.noise import NoiseEstimate
-from ofbe_data.calibration.results import ZERO_G_OFFSET, CalibrationResult
+from ofbe_data.calibration.noise import RW_BOUND_CONFIDENCE, NoiseEstimate
+from ofbe_data.calibration.results import ZERO_G_OFFSET, CalibrationExportError, CalibrationResult
 from ofbe_data.io.gravity import G0
 from ofbe_data.labelling.conventions import imucal_from_matrix
 
@@ -193,37 +193,90 @@ def imucal_file(r: CalibrationResult, written: datetime) -> bytes:
     return json.dumps(doc, indent=4, allow_nan=False).encode()
 
 
+class KalibrInputError(CalibrationExportError):
+    """A field Kalibr requires has no value: no gyroscope data and no value given for it."""
+
+
+def _kalibr_random_walk(noise: NoiseEstimate, what: str, unit: str) -> tuple[list[str], float]:
+    """Comment lines and value of ``<what>_random_walk``: measured, or the flagged upper bound."""
+    if noise.random_walk is not None:
+        return ([f"# {what}_random_walk [{unit}]: largest axis of x, y, z = "
+                 + ", ".join(f"{v:.4g}" for v in noise.random_walk) + f"; {noise.random_walk_note}"],
+                max(noise.random_walk))
+    bound = noise.random_walk_bound
+    return ([f"# {what}_random_walk [{unit}]: UPPER BOUND, NOT A MEASUREMENT: {noise.random_walk_note}.",
+             "#   Written: the largest random walk the Allan curve allows (K <= ADEV_up(tau)*sqrt(3/tau) at "
+             f"every tau, ADEV_up its one-sided {RW_BOUND_CONFIDENCE:.0%} upper limit);",
+             "#   largest axis of x, y, z = "
+             + ", ".join(f"{v:.4g}" for v in bound) + ".",
+             "#   Conservative: the true value is at most this; hours of static data measure it."],
+            max(bound))
+
+
+def _kalibr_density_lines(noise: NoiseEstimate, what: str, unit: str) -> list[str]:
+    return [f"# {what}_noise_density [{unit}]: white-noise level N, ADEV(tau) = N/sqrt(tau) fitted on "
+            f"tau = {noise.fit_taus_s[0]:.3g}..{noise.fit_taus_s[1]:.3g} s",
+            "#   (= ADEV at tau = 1 s on that line); the largest axis of x, y, z = "
+            + ", ".join(f"{v:.4g}" for v in noise.density)
+            + " (fit slopes " + ", ".join(f"{v:.2f}" for v in noise.fit_slope) + ")"]
+
+
 def kalibr_file(r: CalibrationResult, noise: NoiseEstimate, written: datetime,
-                rostopic: str = DEFAULT_ROSTOPIC) -> bytes:
-    """Kalibr's ``imu.yaml`` (accelerometer part) from the Allan analysis of the segments.
+                rostopic: str = DEFAULT_ROSTOPIC, gyro: NoiseEstimate | None = None,
+                gyro_noise_density: float | None = None, gyro_random_walk: float | None = None) -> bytes:
+    """Kalibr's ``imu.yaml``: every field its ``ImuParameters`` reader requires.
 
     Kalibr takes one value per quantity for all axes: the largest axis is written (the
-    per-axis values are in the comments). ``accelerometer_random_walk`` only when the
-    recordings show the +1/2 branch; ``gyroscope_*`` never (no gyroscope data).
+    per-axis values are in the comments). A random walk the recordings are too short to show is
+    replaced by its upper bound (:func:`~ofbe_data.calibration.noise.random_walk_bound`),
+    flagged in the comment. Gyroscope values: the user's (``gyro_noise_density``, rad/s/√Hz,
+    ``gyro_random_walk``, rad/s²/√Hz) where given, else the Allan analysis of the recordings'
+    gyroscope columns (``gyro``).
+
+    Raises
+    ------
+    KalibrInputError
+        A gyroscope value is neither given nor measurable (``gyro`` None).
     """
-    n = noise.density
+    missing = [flag for flag, value in (("--gyro-noise-density", gyro_noise_density),
+                                        ("--gyro-random-walk", gyro_random_walk)) if value is None]
+    if gyro is None and missing:
+        raise KalibrInputError(
+            f"{r.what}: Kalibr requires gyroscope_noise_density and gyroscope_random_walk, and the raw files "
+            f"have no gyroscope columns; give {' and '.join(missing)} (datasheet values, rad/s/sqrt(Hz) and "
+            "rad/s^2/sqrt(Hz)), or map the gyroscope columns (gx, gy, gz) in session.yaml")
+    for name, value in (("gyroscope_noise_density", gyro_noise_density),
+                        ("gyroscope_random_walk", gyro_random_walk)):
+        if value is not None and not (math.isfinite(value) and value > 0):
+            raise KalibrInputError(f"{name}: expected a positive number, found {value!r}")
     lines = [f"# {line}" for line in _header(r, written, "Kalibr IMU noise parameters (imu.yaml)")]
     lines += [
-        f"# from the overlapping Allan deviation of {noise.n_segments} stationary segments "
+        f"# accelerometer: overlapping Allan deviation of {noise.n_segments} stationary segments "
         f"({noise.total_s:.1f} s in all, shortest {noise.shortest_s:.1f} s, "
         f"tau up to {noise.longest_tau_s:.3g} s)",
-        "# accelerometer_noise_density [m/s^2/sqrt(Hz)]: white-noise level N, ADEV(tau) = N/sqrt(tau) "
-        f"fitted on tau = {noise.fit_taus_s[0]:.3g}..{noise.fit_taus_s[1]:.3g} s",
-        "#   (= ADEV at tau = 1 s on that line); the largest axis of x, y, z = "
-        + ", ".join(f"{v:.4g}" for v in n)
-        + " (fit slopes " + ", ".join(f"{v:.2f}" for v in noise.fit_slope) + ")",
-        f"accelerometer_noise_density: {yaml_float(max(n))}",
+        *_kalibr_density_lines(noise, "accelerometer", "m/s^2/sqrt(Hz)"),
+        f"accelerometer_noise_density: {yaml_float(max(noise.density))}",
     ]
-    if noise.random_walk is not None:
-        lines += ["# accelerometer_random_walk [m/s^3/sqrt(Hz)]: largest axis of x, y, z = "
-                  + ", ".join(f"{v:.4g}" for v in noise.random_walk) + f"; {noise.random_walk_note}",
-                  f"accelerometer_random_walk: {yaml_float(max(noise.random_walk))}"]
+    rw_lines, rw = _kalibr_random_walk(noise, "accelerometer", "m/s^3/sqrt(Hz)")
+    lines += [*rw_lines, f"accelerometer_random_walk: {yaml_float(rw)}"]
+    if gyro is not None:
+        lines.append("# gyroscope: the same analysis of the recordings' gyroscope columns (rad/s) over "
+                     "the same segments")
+    if gyro_noise_density is not None:
+        lines += ["# gyroscope_noise_density [rad/s/sqrt(Hz)]: given by the user (--gyro-noise-density)",
+                  f"gyroscope_noise_density: {yaml_float(gyro_noise_density)}"]
     else:
-        lines += [f"# accelerometer_random_walk: not measured: {noise.random_walk_note}.",
-                  "#   Kalibr requires it: take it from the datasheet or an Allan analysis of hours "
-                  "of static data."]
-    lines += ["# gyroscope_noise_density, gyroscope_random_walk: not written: ofbe has no gyroscope data.",
-              f"rostopic: {json.dumps(rostopic)}",
+        assert gyro is not None
+        lines += [*_kalibr_density_lines(gyro, "gyroscope", "rad/s/sqrt(Hz)"),
+                  f"gyroscope_noise_density: {yaml_float(max(gyro.density))}"]
+    if gyro_random_walk is not None:
+        lines += ["# gyroscope_random_walk [rad/s^2/sqrt(Hz)]: given by the user (--gyro-random-walk)",
+                  f"gyroscope_random_walk: {yaml_float(gyro_random_walk)}"]
+    else:
+        assert gyro is not None
+        g_lines, g_rw = _kalibr_random_walk(gyro, "gyroscope", "rad/s^2/sqrt(Hz)")
+        lines += [*g_lines, f"gyroscope_random_walk: {yaml_float(g_rw)}"]
+    lines += [f"rostopic: {json.dumps(rostopic)}",
               f"update_rate: {yaml_float(round(noise.fs_hz, 6))}  # Hz, measured sample rate"]
     return ("\n".join(lines) + "\n").encode()
 

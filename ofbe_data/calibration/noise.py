@@ -13,8 +13,13 @@ deviation read at tau = 1 s (σ(1 s) = N, m/s²/√Hz; σ_sample = N·√f_s). A
 (m/s³/√Hz, ADEV(tau) = K·√(tau/3)) is read only where the curve is seen to turn up: the Allan
 minimum at tau ≥ :data:`RW_MIN_TAU_S` with at least :data:`RW_MIN_TAUS` averaging times beyond it,
 every tau used holding at least :data:`MIN_CLUSTERS` clusters of the shortest segment, and a
-free slope beyond the minimum within :data:`RW_SLOPE` (+1/2 expected). Otherwise it is left
-unmeasured with the reason.
+free slope beyond the minimum within :data:`RW_SLOPE` (+1/2 expected). Otherwise only an upper
+bound is known (:func:`random_walk_bound`): the largest K that the Allan curve's upper
+:data:`RW_BOUND_CONFIDENCE` confidence limit allows at any tau, since a random walk alone would
+put ADEV(tau) at K·√(tau/3) or more.
+
+The same analysis runs on a recording's gyroscope columns where it has them
+(:meth:`~ofbe_data.io.recording.Recording.gyro`, rad/s): N in rad/s/√Hz, K in rad/s²/√Hz.
 """
 
 from __future__ import annotations
@@ -26,6 +31,7 @@ from datetime import UTC
 from pathlib import Path
 
 import numpy as np
+from scipy import stats
 
 from ofbe_data.calibration.results import (
     TIME_RAW,
@@ -55,6 +61,8 @@ scatter by tens of percent)."""
 RW_ABOVE_WHITE = 2.0
 """The deviation at the longest τ must be this many times the white-noise line N/√τ (a
 white-noise curve's last points scatter by tens of percent, not by a factor of 2)."""
+RW_BOUND_CONFIDENCE = 0.95
+"""One-sided confidence of the Allan deviation used for the random-walk upper bound."""
 MIN_SEGMENT_SAMPLES = 16
 """Fewest samples a stationary segment needs to enter the Allan analysis."""
 
@@ -79,6 +87,8 @@ class NoiseEstimate:
         (3,) K per axis, m/s³/√Hz, or None when not measurable.
     random_walk_note
         How K was read, or why it was not.
+    random_walk_bound
+        (3,) upper bound on K per axis (:func:`random_walk_bound`), always computed.
     fs_hz
         Sampling rate used, Hz.
     n_segments, total_s, shortest_s
@@ -92,6 +102,7 @@ class NoiseEstimate:
     fit_slope: tuple[float, float, float]
     random_walk: tuple[float, float, float] | None
     random_walk_note: str
+    random_walk_bound: tuple[float, float, float]
     fs_hz: float
     n_segments: int
     total_s: float
@@ -148,6 +159,36 @@ def random_walk_level(result: AllanResult, white: np.ndarray
         "(slopes " + ", ".join(f"{s:.2f}" for s in slopes) + ")")
 
 
+def random_walk_bound(result: AllanResult, confidence: float = RW_BOUND_CONFIDENCE
+                      ) -> tuple[float, float, float]:
+    """Upper bound on the bias random walk K per axis that the Allan curve allows.
+
+    Allan variances of independent noises add, so a random walk K alone gives
+    ``ADEV(τ) ≥ K·√(τ/3)`` at every τ: ``K ≤ min_τ ADEV_up(τ)·√(3/τ)``. ``ADEV_up`` is the
+    one-sided upper confidence limit of the estimate, ``ADEV·√(ν/χ²_ν(1 − confidence))`` with
+    ν = ``n_terms``/m equivalent degrees of freedom (about the number of independent
+    clusters; at least 1), so the bound holds for a curve that scattered low. Usually the
+    longest τ gives the bound: it shrinks as 1/√τ with longer recordings.
+
+    Parameters
+    ----------
+    result
+        Allan deviation (m/s² or rad/s).
+    confidence
+        One-sided confidence of the limit, in (0, 1).
+
+    Returns
+    -------
+    tuple
+        (3,) bound per axis, in the deviation's unit per √s (m/s³/√Hz, rad/s²/√Hz).
+    """
+    m = np.maximum(np.rint(result.taus_s * result.fs_hz), 1.0)
+    nu = np.maximum(result.n_terms / m, 1.0)
+    upper = result.adev * np.sqrt(nu / stats.chi2.ppf(1.0 - confidence, nu))[:, None]
+    bound = np.min(upper * np.sqrt(3.0 / result.taus_s)[:, None], axis=0)
+    return (float(bound[0]), float(bound[1]), float(bound[2]))
+
+
 def noise_from_segments(segments: Sequence[np.ndarray], fs_hz: float, what: str = "segments"
                         ) -> NoiseEstimate:
     """Noise density (and random walk where visible) of stationary segments of one device.
@@ -183,6 +224,7 @@ def noise_from_segments(segments: Sequence[np.ndarray], fs_hz: float, what: str 
     return NoiseEstimate(
         density=tuple(float(v) for v in white.density), fit_taus_s=(float(pooled.taus_s[0]), white.tau_max_s),
         fit_slope=tuple(float(v) for v in white.slope), random_walk=k, random_walk_note=note,
+        random_walk_bound=random_walk_bound(pooled),
         fs_hz=float(fs_hz), n_segments=len(segs), total_s=sum(s.shape[0] for s in segs) / fs_hz,
         shortest_s=shortest / fs_hz, longest_tau_s=float(pooled.taus_s[-1]))
 
@@ -233,8 +275,21 @@ class RawFiles:
     def segment_samples(self, seg: Segment, device: str) -> np.ndarray:
         """(n, 3) m/s² of the row's stationary interval (device clock, both ends included)."""
         rec = self.recording(seg, device)
-        keep = (rec.t >= seg.start_s - 1e-9) & (rec.t <= seg.end_s + 1e-9)
-        return rec.acc[keep]
+        return rec.acc[_inside(rec, seg)]
+
+    def segment_gyro(self, seg: Segment, device: str) -> np.ndarray | None:
+        """(n, 3) rad/s of the row's stationary interval, or None when the file has no gyroscope
+        columns (or they hold a non-finite value there)."""
+        rec = self.recording(seg, device)
+        gyro = rec.gyro()
+        if gyro is None:
+            return None
+        part = gyro[_inside(rec, seg)]
+        return part if np.all(np.isfinite(part)) else None
+
+
+def _inside(rec: Recording, seg: Segment) -> np.ndarray:
+    return (rec.t >= seg.start_s - 1e-9) & (rec.t <= seg.end_s + 1e-9)
 
 
 def noise_of(result: CalibrationResult, raw: RawFiles) -> NoiseEstimate:
@@ -247,6 +302,18 @@ def noise_of(result: CalibrationResult, raw: RawFiles) -> NoiseEstimate:
         raise NoiseAnalysisError(f"{result.what}: expected a measured sample rate (fs_hz), found {fs!r}")
     samples = [raw.segment_samples(s, result.device) for s in result.segments]
     return noise_from_segments(samples, fs, f"{raw.raw_dir}: {result.what}")
+
+
+def gyro_noise_of(result: CalibrationResult, raw: RawFiles) -> NoiseEstimate | None:
+    """The gyroscope noise of a labels result from the same stationary segments, rad/s, or None
+    when any of its raw files has no (finite) gyroscope columns there."""
+    if not result.segments or result.fs_hz is None:
+        return None
+    samples = [raw.segment_gyro(s, result.device) for s in result.segments]
+    if any(s is None for s in samples):
+        return None
+    return noise_from_segments([s for s in samples if s is not None], result.fs_hz,
+                               f"{raw.raw_dir}: {result.what} (gyroscope)")
 
 
 def attach_raw_times(collected: Collected, raw: RawFiles | None) -> Collected:

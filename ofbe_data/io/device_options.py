@@ -15,9 +15,12 @@ import numpy as np
 TIME_UNITS = ("s", "ms", "us", "ns", "samples")
 ACC_UNITS = ("m/s2", "g", "mg", "counts")
 TEMPERATURE_UNITS = ("C", "K", "F")
+GYRO_UNITS = ("rad/s", "deg/s")
 WHITESPACE = "whitespace"
 """``delimiter`` value for runs of spaces and/or tabs."""
-COLUMN_KEYS = ("t", "ax", "ay", "az", "temperature")
+COLUMN_KEYS = ("t", "ax", "ay", "az", "temperature", "gx", "gy", "gz")
+GYRO_KEYS = ("gx", "gy", "gz")
+"""Optional angular-rate columns: all three or none (Kalibr's gyroscope noise is read from them)."""
 
 
 @dataclass(frozen=True)
@@ -27,8 +30,9 @@ class CsvMapping:
     Attributes
     ----------
     columns
-        Column for ``ax``, ``ay``, ``az`` and optionally ``t`` and ``temperature``: names,
-        or 0-based indices when ``header`` is false.
+        Column for ``ax``, ``ay``, ``az`` and optionally ``t``, ``temperature`` and the
+        angular rate ``gx``, ``gy``, ``gz`` (all three): names, or 0-based indices when
+        ``header`` is false.
     time_unit
         ``s``, ``ms``, ``us``, ``ns`` or ``samples`` (an index; t = index / rate).
     acc_unit
@@ -53,6 +57,8 @@ class CsvMapping:
         ``C``, ``K`` or ``F``.
     range_g
         Full-scale range, g: readings at ±range_g are saturated (None: found from the data).
+    gyro_unit
+        ``rad/s`` or ``deg/s``: unit of the ``gx``/``gy``/``gz`` columns.
     """
 
     columns: dict[str, str | int]
@@ -67,6 +73,7 @@ class CsvMapping:
     zero_counts: tuple[float, float, float] | float = 0.0
     temperature_unit: str = "C"
     range_g: float | None = None
+    gyro_unit: str = "rad/s"
 
     def lsb_axes(self) -> np.ndarray:
         """Counts per g per axis, (3,) (ones when not counts)."""
@@ -102,6 +109,8 @@ class CsvMapping:
             out["temperature_unit"] = self.temperature_unit
         if self.range_g is not None:
             out["range_g"] = self.range_g
+        if "gx" in self.columns and self.gyro_unit != "rad/s":
+            out["gyro_unit"] = self.gyro_unit
         return out
 
 

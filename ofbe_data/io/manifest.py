@@ -22,6 +22,8 @@ from ofbe_data.core.errors import ManifestError
 from ofbe_data.io.device_options import (
     ACC_UNITS,
     COLUMN_KEYS,
+    GYRO_KEYS,
+    GYRO_UNITS,
     TEMPERATURE_UNITS,
     TIME_UNITS,
     WHITESPACE,
@@ -314,7 +316,7 @@ def _parse_csv_mapping(v: _Validator, entry: dict[str, Any], where: list[str | i
     columns: dict[str, str | int] = {}
     for key in COLUMN_KEYS:
         if key not in cols:
-            if key in ("t", "temperature"):
+            if key in ("t", "temperature", *GYRO_KEYS):
                 continue
             v.get(cols, [*where, "columns"], key)
         name = cols[key]
@@ -325,6 +327,10 @@ def _parse_csv_mapping(v: _Validator, entry: dict[str, Any], where: list[str | i
         elif isinstance(name, bool) or not isinstance(name, int) or name < 0:
             raise v.fail([*where, "columns", key], "a 0-based column index (header: false)", _describe(name))
         columns[key] = name
+    given = [k for k in GYRO_KEYS if k in columns]
+    if given and len(given) != len(GYRO_KEYS):
+        raise v.fail([*where, "columns"], "all three angular-rate columns gx, gy, gz or none of them",
+                     "only " + ", ".join(given))
     if len(set(columns.values())) != len(columns):
         raise v.fail([*where, "columns"], "a different column for each key", _describe(cols))
     time_unit = v.choice(entry.get("time_unit", "s"), [*where, "time_unit"], TIME_UNITS)
@@ -355,8 +361,9 @@ def _parse_csv_mapping(v: _Validator, entry: dict[str, Any], where: list[str | i
     range_g = None
     if entry.get("range_g") is not None:
         range_g = v.number(entry["range_g"], [*where, "range_g"], 1e-3, 1e4)
+    gyro_unit = v.choice(entry.get("gyro_unit", "rad/s"), [*where, "gyro_unit"], GYRO_UNITS)
     return CsvMapping(columns, time_unit, acc_unit, lsb, skip, str(delim), header, comment, rate, zero,
-                      t_unit, range_g)
+                      t_unit, range_g, gyro_unit)
 
 
 def _parse_bin_options(v: _Validator, entry: dict[str, Any], where: list[str | int]) -> BinOptions:
@@ -368,7 +375,7 @@ def _parse_bin_options(v: _Validator, entry: dict[str, Any], where: list[str | i
 
 
 _CSV_KEYS = {"columns", "time_unit", "acc_unit", "lsb_per_g", "skip_rows", "delimiter", "header", "comment",
-             "sample_rate_hz", "zero_counts", "temperature_unit", "range_g"}
+             "sample_rate_hz", "zero_counts", "temperature_unit", "range_g", "gyro_unit"}
 _DEVICE_KEYS = {"model", "role", "format", "reference_to_sensor"} | _CSV_KEYS
 
 

@@ -20,6 +20,10 @@ SKIP_NON_INCREASING_TIME = "non-increasing-time"
 
 TEMPERATURE = "temperature_c"
 """Key of a per-sample temperature (°C) in :attr:`Recording.extra`."""
+GYRO = ("gyro_x_rad_s", "gyro_y_rad_s", "gyro_z_rad_s")
+"""Keys of a per-sample angular rate (rad/s, sensor frame) in :attr:`Recording.extra`."""
+GYRO_DEG_S = ("Gyro X (deg/s)", "Gyro Y (deg/s)", "Gyro Z (deg/s)")
+"""Keys of a per-sample angular rate in deg/s (the Memsense readers keep their own column names)."""
 
 
 @dataclass(frozen=True)
@@ -158,6 +162,14 @@ class Recording:
     header: dict[str, str]
     diagnostics: ReadDiagnostics
     extra: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def gyro(self) -> np.ndarray | None:
+        """Angular rate, (N, 3) rad/s in the sensor frame, or None when the file has no gyroscope
+        columns (read from :data:`GYRO`, or :data:`GYRO_DEG_S` converted)."""
+        for keys, scale in ((GYRO, 1.0), (GYRO_DEG_S, np.pi / 180.0)):
+            if all(k in self.extra for k in keys):
+                return np.stack([np.asarray(self.extra[k], dtype=np.float64) for k in keys], axis=1) * scale
+        return None
 
     @property
     def n(self) -> int:

@@ -6,7 +6,8 @@ prints, one file per device and power cycle (per estimate for predictions):
 
 - ``imucal``: imucal ``FerrarisCalibrationInfo`` JSON (gyroscope identity/zero);
 - ``kalibr``: Kalibr ``imu.yaml`` noise parameters from the Allan deviation of the labelled
-  stationary segments (needs ``--raw``, the campaign's raw folder);
+  stationary segments (needs ``--raw``, the campaign's raw folder); the gyroscope's from the
+  recordings' gyroscope columns or ``--gyro-noise-density``/``--gyro-random-walk``;
 - ``ros``: YAML with the bias to subtract and ``linear_acceleration_covariance``;
 - ``ggir``: GGIR ``backup.cal.coef`` CSV (offsets in g, GGIR's sign);
 - ``json``: ofbe's own ``ofbe-calibration/1``.
@@ -39,8 +40,8 @@ from pathlib import Path
 import numpy as np
 
 from ofbe_data.calibration import formats as fmt
-from ofbe_data.calibration.noise import RawFiles, attach_raw_times, noise_of
-from ofbe_data.calibration.results import Collected, load_results
+from ofbe_data.calibration.noise import RawFiles, attach_raw_times, gyro_noise_of, noise_of
+from ofbe_data.calibration.results import CalibrationResult, Collected, load_results
 from ofbe_data.calibration.store import CalibrationStoreError, store_path
 from ofbe_data.core.atomic import atomic_directory, write_bytes_atomic
 from ofbe_data.core.cli import EXIT_DATA, EXIT_OK, EXIT_USAGE, command, fail
@@ -128,8 +129,20 @@ def _kalibr(args: argparse.Namespace) -> list[ExportFile]:
     collected, raw = _collect(args, need_raw=True)
     assert raw is not None
     now = written_time()
-    return _calibration_files(collected, "kalibr",
-                              lambda r: fmt.kalibr_file(r, noise_of(r, raw), now, args.rostopic))
+    given = (args.gyro_noise_density, args.gyro_random_walk)
+
+    def render(r: CalibrationResult) -> bytes:
+        gyro = None if None not in given else gyro_noise_of(r, raw)
+        if gyro is None and None in given:
+            missing = [f for f, v in zip(("--gyro-noise-density", "--gyro-random-walk"), given, strict=True)
+                       if v is None]
+            raise ExportUsageError(
+                f"{args.source}: {r.what}: Kalibr requires the gyroscope's noise density and random walk and "
+                f"the raw files have no gyroscope columns; give {' and '.join(missing)} (datasheet values, "
+                "rad/s/sqrt(Hz) and rad/s^2/sqrt(Hz)), or map gx, gy, gz in session.yaml")
+        return fmt.kalibr_file(r, noise_of(r, raw), now, args.rostopic, gyro, *given)
+
+    return _calibration_files(collected, "kalibr", render)
 
 
 def _ros(args: argparse.Namespace) -> list[ExportFile]:
@@ -205,8 +218,8 @@ def _c_header(args: argparse.Namespace) -> list[ExportFile]:
 FORMATS: dict[str, Format] = {
     "imucal": Format(_imucal, "imucal Ferraris calibration JSON (accelerometer from ofbe, gyroscope "
                               "identity)"),
-    "kalibr": Format(_kalibr, "Kalibr imu.yaml: accelerometer noise density (and random walk) from the "
-                              "Allan deviation; needs --raw"),
+    "kalibr": Format(_kalibr, "Kalibr imu.yaml: accelerometer and gyroscope noise density and random walk "
+                              "from the Allan deviation (gyroscope from its columns or flags); needs --raw"),
     "ros": Format(_ros, "YAML: bias to subtract (m/s²) and linear_acceleration_covariance"),
     "ggir": Format(_ggir, "GGIR backup.cal.coef CSV: scale.*, offset.* (g, GGIR's sign)"),
     "json": Format(_json, "ofbe-calibration/1 JSON: bias, std, kind, method, source, time, version"),
@@ -298,6 +311,16 @@ def write_outputs(files: Sequence[ExportFile], out: Path | None, store: Path | N
 # ----------------------------------------------------------------------------- command
 
 
+def _positive(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive number, found {text!r}") from None
+    if not (np.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a positive number, found {text!r}")
+    return value
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The command-line parser of ``ofbe-export``."""
     p = argparse.ArgumentParser(
@@ -323,6 +346,12 @@ def build_parser() -> argparse.ArgumentParser:
                    help="ggir: GGIR's unit sphere (default: resting readings of norm 1 g) or ofbe's local "
                         "convention (norm g_local/g0)")
     p.add_argument("--rostopic", default=fmt.DEFAULT_ROSTOPIC, help="kalibr: rostopic (default %(default)s)")
+    p.add_argument("--gyro-noise-density", type=_positive, metavar="RAD_S_SQRT_HZ",
+                   help="kalibr: gyroscope white-noise density, rad/s/sqrt(Hz) (datasheet); default: measured"
+                        " from the recordings' gyroscope columns")
+    p.add_argument("--gyro-random-walk", type=_positive, metavar="RAD_S2_SQRT_HZ",
+                   help="kalibr: gyroscope bias random walk, rad/s^2/sqrt(Hz); default: measured from the "
+                        "gyroscope columns (or their flagged upper bound)")
     p.add_argument("--dataset", type=Path, help="tflite: the dataset the model was trained on")
     p.add_argument("--protocol", help="tflite: with --fold, only that fold's training windows")
     p.add_argument("--fold", type=int, help="tflite: the fold of --protocol the model was trained for")

@@ -21,7 +21,14 @@ import yaml
 
 import ofbe_data
 from ofbe_data.calibration import formats as fmt
-from ofbe_data.calibration.noise import RawFiles, attach_raw_times, noise_from_segments, noise_of
+from ofbe_data.calibration.formats import KalibrInputError
+from ofbe_data.calibration.noise import (
+    RawFiles,
+    attach_raw_times,
+    gyro_noise_of,
+    noise_from_segments,
+    noise_of,
+)
 from ofbe_data.calibration.results import (
     APPARENT,
     TIME_LABEL_MTIME,
@@ -47,6 +54,7 @@ from ofbe_data.labelling.conventions import MATRIX_COLUMNS
 from ofbe_data.labelling.labels import LabelParams
 from ofbe_data.labelling.store import read_labels
 from ofbe_data.simulator import load_config, simulate_campaign
+from tests.conftest import kalibr_imu_parameters
 
 WRITTEN = datetime(2025, 6, 1, 12, 0, 0, tzinfo=UTC)
 #: Every key of Kalibr's IMU yaml (https://github.com/ethz-asl/kalibr/wiki/yaml-formats).
@@ -343,7 +351,9 @@ def test_json_parses_back(campaign) -> None:
 
 def test_kalibr_noise_density_matches_the_simulated_white_noise(campaign) -> None:
     """N = σ/√f_s from the Allan deviation of the labelled segments, within 10 % of the
-    simulator's per-axis noise (the 3.9 mg quantisation adds a few percent)."""
+    simulator's per-axis noise (the 3.9 mg quantisation adds a few percent). The 35 s segments
+    cannot show a random walk: its flagged upper bound is written, and Kalibr's reader takes
+    the file (the gyroscope values from the flags: the SparkFun files have no gyroscope)."""
     truth_mg = np.array(load_config("tiny-gravity-aligned").dut_model.noise_mg)
     raw = RawFiles(campaign / "raw" / "ga")
     for r in results_from_labels(campaign / "labels" / "ga").results:
@@ -351,13 +361,20 @@ def test_kalibr_noise_density_matches_the_simulated_white_noise(campaign) -> Non
         expected = truth_mg * 1e-3 * G0 / math.sqrt(r.fs_hz)
         assert np.all(np.abs(np.array(noise.density) / expected - 1) < 0.10), (noise.density, expected)
         assert noise.random_walk is None  # 35 s segments cannot show the +1/2 branch
-        doc = yaml.safe_load(fmt.kalibr_file(r, noise, WRITTEN))
-        assert set(doc) <= KALIBR_KEYS
-        assert set(doc) == {"accelerometer_noise_density", "rostopic", "update_rate"}
-        assert doc["accelerometer_noise_density"] == max(noise.density)  # m/s²/√Hz, one value for all axes
-        assert doc["rostopic"] == "/imu0" and abs(doc["update_rate"] - r.fs_hz) < 1e-5
-        text = fmt.kalibr_file(r, noise, WRITTEN).decode()
-        assert "# accelerometer_random_walk: not measured" in text and "bias_kind: apparent" in text
+        assert gyro_noise_of(r, raw) is None
+        with pytest.raises(KalibrInputError, match="--gyro-noise-density and --gyro-random-walk"):
+            fmt.kalibr_file(r, noise, WRITTEN)
+        data = fmt.kalibr_file(r, noise, WRITTEN, gyro_noise_density=1.7e-4, gyro_random_walk=2e-5)
+        doc = yaml.safe_load(data)
+        assert set(doc) == KALIBR_KEYS and all(isinstance(doc[k], float) for k in KALIBR_KEYS - {"rostopic"})
+        kalibr = kalibr_imu_parameters(data)
+        assert kalibr["accelerometer_noise_density"] == max(noise.density)  # one value for all axes
+        assert kalibr["accelerometer_random_walk"] == max(noise.random_walk_bound)
+        assert kalibr["gyroscope_noise_density"] == 1.7e-4 and kalibr["gyroscope_random_walk"] == 2e-5
+        assert kalibr["rostopic"] == "/imu0" and abs(kalibr["update_rate"] - r.fs_hz) < 1e-5
+        text = data.decode()
+        assert "# accelerometer_random_walk [m/s^3/sqrt(Hz)]: UPPER BOUND, NOT A MEASUREMENT" in text
+        assert "given by the user (--gyro-noise-density)" in text and "bias_kind: apparent" in text
 
 
 def test_random_walk_is_read_only_where_the_curve_turns_up() -> None:
@@ -370,9 +387,28 @@ def test_random_walk_is_read_only_where_the_curve_turns_up() -> None:
     white = noise_from_segments([sigma * rng.standard_normal((n, 3))], fs)
     assert white.random_walk is None
     r = _bare_result()
-    doc = yaml.safe_load(fmt.kalibr_file(r, noise, WRITTEN, rostopic="/dut/imu"))
-    assert set(doc) == {"accelerometer_noise_density", "accelerometer_random_walk", "rostopic", "update_rate"}
-    assert doc["accelerometer_random_walk"] == max(noise.random_walk) and doc["rostopic"] == "/dut/imu"
+    data = fmt.kalibr_file(r, noise, WRITTEN, rostopic="/dut/imu", gyro=white)
+    kalibr = kalibr_imu_parameters(data)
+    assert kalibr["accelerometer_random_walk"] == max(noise.random_walk) and kalibr["rostopic"] == "/dut/imu"
+    assert kalibr["gyroscope_noise_density"] == max(white.density)
+    assert kalibr["gyroscope_random_walk"] == max(white.random_walk_bound)
+    assert data.decode().count("UPPER BOUND") == 1  # the gyroscope's, not the measured accelerometer's
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_random_walk_bound_holds_where_the_walk_is_not_yet_visible(seed: int) -> None:
+    """A walk hidden under white noise (crossover √3·N/K ≈ 260 s, 600 s of data): no K is read,
+    and the upper bound is above the true K on every axis, yet within a factor of 20 of it (it
+    shrinks as 1/√τ with longer data); white noise alone gives a bound near that level too."""
+    rng = np.random.default_rng(seed)
+    fs, n, sigma, k = 50.0, 30_000, 0.03, 2e-5
+    walk = np.cumsum(k / math.sqrt(fs) * rng.standard_normal((n, 3)), axis=0)
+    noise = noise_from_segments([sigma * rng.standard_normal((n, 3)) + walk], fs)
+    assert noise.random_walk is None
+    bound = np.array(noise.random_walk_bound)
+    assert np.all(bound > k) and np.all(bound < 20 * k), bound / k
+    longer = noise_from_segments([sigma * rng.standard_normal((4 * n, 3))], fs)
+    assert np.all(np.array(longer.random_walk_bound) < bound)
 
 
 def test_raw_files_give_recording_times_and_are_checked(campaign, tmp_path) -> None:

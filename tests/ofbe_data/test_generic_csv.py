@@ -157,6 +157,19 @@ def test_temperature_in_fahrenheit_becomes_celsius(tmp_path: Path) -> None:
     np.testing.assert_allclose(rec.extra[TEMPERATURE], [25.0, 26.0] * 5, atol=1e-12)
 
 
+def test_gyroscope_columns_in_degrees_become_rad_per_s(tmp_path: Path) -> None:
+    text = "t,ax,ay,az,wx,wy,wz\n" + "".join(f"{i / FS:.2f},0,0,9.8,{i % 3},-90,180\n" for i in range(6))
+    mapping = CsvMapping({"t": "t", "ax": "ax", "ay": "ay", "az": "az", "gx": "wx", "gy": "wy", "gz": "wz"},
+                         gyro_unit="deg/s")
+    rec = read_generic_csv(_write(tmp_path, "gyro.csv", text), mapping)
+    gyro = rec.gyro()
+    assert gyro is not None
+    np.testing.assert_allclose(gyro, np.radians([[i % 3, -90, 180] for i in range(6)]), rtol=1e-15)
+    plain = read_generic_csv(tmp_path / "gyro.csv",
+                             CsvMapping({"t": "t", "ax": "ax", "ay": "ay", "az": "az"}))
+    assert plain.gyro() is None
+
+
 def test_range_g_marks_saturated_samples(tmp_path: Path) -> None:
     text = "t,ax,ay,az\n0.00,0,0,1.0\n0.01,0,0,1.999\n0.02,0,2.0,1.0\n0.03,0,0,1.0\n"
     mapping = CsvMapping({"t": "t", "ax": "ax", "ay": "ay", "az": "az"}, "s", "g", range_g=2.0)
@@ -208,7 +221,13 @@ def _manifest(tmp_path: Path, device_keys: str) -> Path:
     ("    columns: {t: t, ax: a, ay: a, az: c}\n",
      "devices.dut.columns: expected a different column for each key"),
     ("    columns: {t: t, ax: a, ay: b, az: c, gx: d}\n",
-     "devices.dut.columns.gx: expected a column key among t, ax, ay, az, temperature, found str 'gx'"),
+     "devices.dut.columns: expected all three angular-rate columns gx, gy, gz or none of them, "
+     "found only gx"),
+    ("    columns: {t: t, ax: a, ay: b, az: c, wx: d}\n",
+     "devices.dut.columns.wx: expected a column key among t, ax, ay, az, temperature, gx, gy, gz, "
+     "found str 'wx'"),
+    ("    columns: {t: t, ax: a, ay: b, az: c, gx: d, gy: e, gz: f}\n    gyro_unit: rpm\n",
+     "devices.dut.gyro_unit: expected one of rad/s, deg/s, found str 'rpm'"),
 ])
 def test_manifest_keys_are_checked(tmp_path: Path, keys: str, message: str) -> None:
     folder = _manifest(tmp_path, keys)

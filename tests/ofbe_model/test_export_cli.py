@@ -24,6 +24,7 @@ from ofbe_data.labelling.store import read_labels
 from ofbe_data.simulator import load_config, simulate_campaign
 from ofbe_model.cli import export
 from ofbe_model.predict import predict, targets
+from tests.conftest import kalibr_imu_parameters
 
 
 @pytest.fixture(scope="module")
@@ -83,13 +84,79 @@ def test_each_format_writes_one_file_per_device_and_power_cycle(tmp_path, campai
 
 def test_kalibr_from_labels_and_raw(tmp_path, campaign, capsys) -> None:
     code, _, err = _run(capsys, "kalibr", campaign / "labels" / "ga", "--raw", campaign / "raw" / "ga",
-                        "--out", tmp_path / "k", "--rostopic", "/dut/imu")
+                        "--out", tmp_path / "k", "--rostopic", "/dut/imu",
+                        "--gyro-noise-density", "1.7e-4", "--gyro-random-walk", "2e-5")
     assert code == 0, err
     files = sorted((tmp_path / "k").iterdir())
     assert [p.name for p in files] == [f"sparkfun-{d}.pc{c}.kalibr.yaml" for d in (1, 2) for c in (1, 2, 3)]
-    doc = yaml.safe_load(files[0].read_bytes())
-    assert doc["rostopic"] == "/dut/imu" and 0.002 < doc["accelerometer_noise_density"] < 0.006
-    assert "accelerometer_random_walk" not in doc
+    kalibr = kalibr_imu_parameters(files[0].read_bytes())  # Kalibr's own reader takes every file
+    assert kalibr["rostopic"] == "/dut/imu" and 0.002 < kalibr["accelerometer_noise_density"] < 0.006
+    assert kalibr["gyroscope_noise_density"] == 1.7e-4 and kalibr["gyroscope_random_walk"] == 2e-5
+    assert "UPPER BOUND" in files[0].read_text()
+
+
+GYRO_SIGMA_DPS = (0.05, 0.08, 0.03)
+"""Per-axis white angular-rate noise of the gyroscope session, deg/s rms per sample."""
+
+
+@pytest.fixture(scope="module")
+def gyro_session(tmp_path_factory) -> Path:
+    """A generic-csv gravity-aligned session of a board that logs its gyroscope (deg/s) beside the
+    accelerometer (g): 90 s at 100 Hz, white noise of known level on both, labelled."""
+    tmp = tmp_path_factory.mktemp("gyro")
+    folder = tmp / "raw" / "bench" / "s1"
+    folder.mkdir(parents=True)
+    rng = np.random.default_rng(11)
+    n, fs = 9000, 100.0
+    acc = np.array([0.002, -0.003, 1.004]) + 0.002 * rng.standard_normal((n, 3))
+    gyro = np.array([0.4, -0.2, 0.1]) + np.array(GYRO_SIGMA_DPS) * rng.standard_normal((n, 3))
+    rows = [f"{i / fs:.2f},{a[0]:.6f},{a[1]:.6f},{a[2]:.6f},{g[0]:.5f},{g[1]:.5f},{g[2]:.5f}"
+            for i, (a, g) in enumerate(zip(acc, gyro, strict=True))]
+    (folder / "r1.csv").write_text("time,ACC_X,ACC_Y,ACC_Z,GYR_X,GYR_Y,GYR_Z\n" + "\n".join(rows) + "\n")
+    (folder / "session.yaml").write_text(
+        "format: ofbe-session/1\ncampaign: bench\nsession: s1\nkind: gravity-aligned\n"
+        "site: {gravity_mps2: 9.80665}\npower_cycle: 1\ndevices:\n  board:\n    model: MPU-6050\n"
+        "    role: dut\n    format: csv\n    columns: {t: time, ax: ACC_X, ay: ACC_Y, az: ACC_Z, gx: GYR_X, "
+        "gy: GYR_Y, gz: GYR_Z}\n    acc_unit: g\n    gyro_unit: deg/s\n"
+        "recordings:\n  - id: r1\n    files: {board: r1.csv}\n")
+    outcomes = label_sessions(expand_sessions([tmp / "raw" / "bench"]), LabelParams(min_samples=1000),
+                              tmp / "labels", jobs=1, progress=False)
+    assert [o.error for o in outcomes if o.error] == []
+    return tmp
+
+
+def test_kalibr_reads_the_gyroscope_columns(tmp_path, gyro_session, capsys) -> None:
+    """The gyroscope's noise density comes from its own columns (deg/s → rad/s) within 10 % of
+    the generated level; the user's flag, where given, wins and is said so."""
+    code, _, err = _run(capsys, "kalibr", gyro_session / "labels" / "bench", "--raw",
+                        gyro_session / "raw" / "bench", "--out", tmp_path / "k.yaml")
+    assert code == 0, err
+    kalibr = kalibr_imu_parameters((tmp_path / "k.yaml").read_bytes())
+    expected = max(GYRO_SIGMA_DPS) * np.pi / 180 / np.sqrt(100.0)
+    assert abs(kalibr["gyroscope_noise_density"] / expected - 1) < 0.10, kalibr
+    assert abs(kalibr["accelerometer_noise_density"] / (0.002 * 9.80665 / 10) - 1) < 0.10, kalibr
+    assert 0 < kalibr["gyroscope_random_walk"] < 1e-3  # the flagged upper bound of 90 s of data
+    text = (tmp_path / "k.yaml").read_text()
+    assert "# gyroscope_random_walk [rad/s^2/sqrt(Hz)]: UPPER BOUND" in text
+    code, _, err = _run(capsys, "kalibr", gyro_session / "labels" / "bench", "--raw",
+                        gyro_session / "raw" / "bench", "--out", tmp_path / "k2.yaml",
+                        "--gyro-random-walk", "3e-5")
+    assert code == 0, err
+    again = kalibr_imu_parameters((tmp_path / "k2.yaml").read_bytes())
+    assert again["gyroscope_random_walk"] == 3e-5
+    assert again["gyroscope_noise_density"] == kalibr["gyroscope_noise_density"]
+
+
+def test_kalibr_without_gyroscope_data_asks_for_the_values(tmp_path, campaign, capsys) -> None:
+    code, out, err = _run(capsys, "kalibr", campaign / "labels" / "ga", "--raw", campaign / "raw" / "ga",
+                          "--out", tmp_path / "k", "--gyro-noise-density", "1e-4")
+    assert code == 2 and out == "" and err.count("\n") == 1, err
+    assert "the raw files have no gyroscope columns; give --gyro-random-walk (datasheet values" in err
+    assert not (tmp_path / "k").exists()
+    with pytest.raises(SystemExit) as exit_:
+        _run(capsys, "kalibr", campaign / "labels" / "ga", "--raw", campaign / "raw" / "ga",
+             "--out", tmp_path / "k", "--gyro-noise-density", "-1")
+    assert exit_.value.code == 2 and "expected a positive number, found '-1'" in capsys.readouterr().err
 
 
 def test_one_result_goes_to_the_file_named(tmp_path, campaign, capsys) -> None:

@@ -25,6 +25,7 @@ import pyarrow.csv as pacsv
 from ofbe_data.core.errors import RawFormatError
 from ofbe_data.io.formats.oddlines import NUMBER_CHARS, OddSplit, long_digit_run, split_odd_lines
 from ofbe_data.io.recording import (
+    GYRO_DEG_S,
     SKIP_EMPTY,
     SKIP_FIELD_COUNT,
     SKIP_NON_INCREASING_TIME,
@@ -39,7 +40,7 @@ WRAP_US = 2**32
 OFBE_LOGGER_COLUMNS = ("t_us", "ax", "ay", "az")
 MSCIP_TIME = "Time (s)"
 MSCIP_ACCEL = ("Accel X (g)", "Accel Y (g)", "Accel Z (g)")
-MSCIP_GYRO = ("Gyro X (deg/s)", "Gyro Y (deg/s)", "Gyro Z (deg/s)")
+MSCIP_GYRO = GYRO_DEG_S
 MSCIP_TEMP = "Temperature (C)"
 MSCIP_COLUMNS = (MSCIP_TIME, *MSCIP_GYRO, *MSCIP_ACCEL, MSCIP_TEMP)
 

@@ -27,6 +27,7 @@ import pyarrow as pa
 
 from ofbe_data.core.atomic import write_bytes_atomic
 from ofbe_data.core.errors import RawFormatError
+from ofbe_data.io.device_options import GYRO_KEYS
 from ofbe_data.io.formats import register_format
 from ofbe_data.io.formats.common import (
     MAX_STEP_S,
@@ -40,7 +41,7 @@ from ofbe_data.io.formats.filebytes import read_file_bytes
 from ofbe_data.io.formats.writing import _assemble, _csv_body, fixed_point
 from ofbe_data.io.gravity import G0
 from ofbe_data.io.manifest import WHITESPACE, CsvMapping, DeviceSpec
-from ofbe_data.io.recording import TEMPERATURE, ReadDiagnostics, Recording, SkippedLine
+from ofbe_data.io.recording import GYRO, TEMPERATURE, ReadDiagnostics, Recording, SkippedLine
 
 _TIME_SCALE = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 _ACC_SCALE = {"m/s2": 1.0, "g": G0, "mg": G0 / 1000.0}
@@ -309,6 +310,9 @@ def read_generic_csv(path: str | Path, mapping: CsvMapping, device: str | None =
     extra: dict[str, np.ndarray] = {}
     if "temperature" in keys:
         extra[TEMPERATURE] = _celsius(v[keys["temperature"]], mapping.temperature_unit)
+    if "gx" in keys:
+        scale = np.pi / 180.0 if mapping.gyro_unit == "deg/s" else 1.0
+        extra.update({name: v[keys[k]] * scale for name, k in zip(GYRO, GYRO_KEYS, strict=True)})
     period, gap_step = _gap_period(t)
     gaps = find_gaps(t, body.lines, period, gap_step / period if period > 0 else None)
     diag = ReadDiagnostics(path, preamble, body.lines_read, int(t.shape[0]), tuple(body.skipped), gaps,
