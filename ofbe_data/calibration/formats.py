@@ -26,6 +26,7 @@ import json
 import math
 from collections.abc import Sequence
 from datetime import UTC, datetime
+from pathlib import PurePosixPath
 from typing import Any
 
 import numpy as np
@@ -46,7 +47,7 @@ FORMAT_EXTENSIONS: dict[str, str] = {"imucal": "imucal.json", "kalibr": "kalibr.
 ``<device>_<YYYYmmddTHHMMSS>.<ending>``)."""
 GGIR_COLUMNS = ("filename", "scale.x", "scale.y", "scale.z", "offset.x", "offset.y", "offset.z",
                 "temperature.offset.x", "temperature.offset.y", "temperature.offset.z", "meantempcal",
-                "use.temperature", "QCmessage", "device", "power_cycle", "bias_kind")
+                "use.temperature", "QCmessage", "device", "power_cycle", "bias_kind", "raw_file")
 """Columns of the GGIR file: those GGIR's ``backup.cal.coef`` reader looks up by name (g.part1),
 then ofbe's own (GGIR ignores them)."""
 DEFAULT_FRAME_ID = "imu_link"
@@ -145,9 +146,13 @@ def yaml_float(x: float) -> str:
 
 
 def _utc(when: datetime | None) -> str | None:
+    """ISO 8601 UTC, ``…T12:00:00Z``, with the fraction of a second (trailing zeros dropped) when
+    there is one."""
     if when is None:
         return None
-    return when.astimezone(UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
+    at = when.astimezone(UTC)
+    text = at.strftime("%Y-%m-%dT%H:%M:%S")
+    return text + ("Z" if at.microsecond == 0 else "." + f"{at.microsecond:06d}".rstrip("0") + "Z")
 
 
 def _kind_words(r: CalibrationResult) -> str:
@@ -330,9 +335,10 @@ def ggir_file(r: CalibrationResult, written: datetime, g0: float = G0,
               convention: str = "unit-sphere") -> bytes:
     """A ``backup.cal.coef`` CSV for GGIR, one row per raw file of the result.
 
-    GGIR looks a file's coefficients up by its ``filename``; rows for other recordings of
-    the same device and power cycle are copies with their file name. Every numeric cell holds
-    a number (GGIR reads an empty one as NA and fails on it).
+    GGIR looks a file's coefficients up by its base name (``filename``); every raw file gets a
+    unique one (:func:`ggir_name`; the ``raw_file`` column says which file it stands for), and
+    the rows of one device and power cycle carry the same coefficients. Every numeric cell
+    holds a number (GGIR reads an empty one as NA and fails on it).
     """
     if convention not in GGIR_CONVENTIONS:
         raise ValueError(f"convention: expected one of {', '.join(GGIR_CONVENTIONS)}, found {convention!r}")
@@ -350,11 +356,19 @@ def ggir_file(r: CalibrationResult, written: datetime, g0: float = G0,
     out = csv.writer(buf, lineterminator="\n")
     out.writerow(GGIR_COLUMNS)
     temp = repr(float(r.temperature_c)) if r.temperature_c is not None else "0.0"
-    for name in r.raw_files or (r.stem,):
-        out.writerow([name, *(repr(float(v)) for v in scale), *(repr(float(v)) for v in offset),
+    for raw in r.raw_files or (r.stem,):
+        out.writerow([ggir_name(raw), *(repr(float(v)) for v in scale), *(repr(float(v)) for v in offset),
                       "0.0", "0.0", "0.0", temp, "FALSE", qc, r.device,
-                      "" if r.power_cycle is None else r.power_cycle, r.bias_kind])
+                      "" if r.power_cycle is None else r.power_cycle, r.bias_kind, raw])
     return buf.getvalue().encode()
+
+
+def ggir_name(raw_file: str) -> str:
+    """The file name GGIR matches a raw file by: its path from the campaign's raw folder with
+    ``/`` replaced by ``__`` (``ga-pc001/rec-01/sparkfun-1.csv`` →
+    ``ga-pc001__rec-01__sparkfun-1.csv``), unique where every raw file is ``<device>.csv``; a
+    bare file name stays as it is."""
+    return "__".join(PurePosixPath(raw_file).parts)
 
 
 def json_document(r: CalibrationResult, written: datetime) -> dict[str, Any]:

@@ -328,7 +328,7 @@ def attach_raw_times(collected: Collected, raw: RawFiles | None) -> Collected:
         if stamps and all(t is not None for t in stamps):
             when = min(stamps)
             when = when if when.tzinfo else when.replace(tzinfo=UTC)
-            when = when.astimezone(UTC).replace(microsecond=0)
+            when = when.astimezone(UTC)
             r = replace(r, time_utc=when, time_source=TIME_RAW)
         out.append(r)
     return replace(collected, results=tuple(out))

@@ -152,7 +152,8 @@ class CalibrationResult:
         the ``TIME_*`` strings); set by :func:`attach_file_times` or
         :func:`ofbe_data.calibration.noise.attach_raw_times`.
     raw_files
-        Base names of the raw files (GGIR keys its coefficients by file name).
+        The raw files: ``<session>/<path in the session folder>`` for labels (relative to the
+        campaign's raw folder), the predicted file's base name for a prediction.
     """
 
     device: str
@@ -336,7 +337,7 @@ def _group_result(device: str, pc: int, rows: pd.DataFrame, files: list[Path], h
         sources=tuple(SourceFile(str(files[i]), hashes[files[i]]) for i in used),
         recordings=tuple(f"{r.session}/{r.recording}" for r in rows.itertuples(index=False)),
         segments=tuple(segs), stem=f"{device}.pc{pc}",
-        raw_files=tuple(sorted({Path(s.raw_file).name for s in segs})),
+        raw_files=tuple(sorted({f"{s.session}/{Path(s.raw_file).as_posix()}" for s in segs})),
         matrix=tuple(_vec(row) for row in matrix), bias_se=bias_se, noise_std=noise_std)
 
 

@@ -1,11 +1,18 @@
 """A calibration store: files filed by device and time, and the one in force at a given time.
 
 imucal's ``cal_store`` idea (``save_calibration_info`` / ``find_closest_calibration_info_to_date``)
-with ofbe's names: ``DIR/<device>/<device>_<YYYYmmddTHHMMSS>.<ending>``, the time in UTC
-(the recording's time where known, see :mod:`ofbe_data.calibration.results`) and the ending
-the format's (:data:`ofbe_data.calibration.formats.FORMAT_EXTENSIONS`). Unlike imucal's
-search, :func:`find_calibration` never returns a calibration made after the time asked
-about: the one in force is the latest at or before it.
+with ofbe's names: ``DIR/<device>/<device>_<YYYYmmddTHHMMSS[.ffffff]>.<ending>``, the time in UTC
+to the microsecond (the fraction written only when not zero, trailing zeros dropped; the
+recording's start where known, see :mod:`ofbe_data.calibration.results`) and the ending the
+format's (:data:`ofbe_data.calibration.formats.FORMAT_EXTENSIONS`).
+
+imucal-format files are filed the way imucal's own ``save_calibration_info`` names them, so
+that its ``find_calibration_info_for_sensor`` and ``find_closest_calibration_info_to_date``
+find them: ``DIR/<device>/<sensor_id>_<YYYY-mm-dd_HH-MM>.json`` with ``sensor_id`` the device
+id lower-cased with everything but letters and digits removed (imucal requires alphanumeric
+ids and splits the name at ``_``), the time in UTC to the minute (imucal's resolution). Unlike
+imucal's search, :func:`find_calibration` never returns a calibration made after the time
+asked about: the one in force is the latest at or before it.
 """
 
 from __future__ import annotations
@@ -19,8 +26,11 @@ from ofbe_data.calibration.results import CalibrationExportError
 from ofbe_data.io.manifest import ID_PATTERN
 
 TIME_FORMAT = "%Y%m%dT%H%M%S"
-"""Time stamp in store file names (UTC)."""
-_STAMP = re.compile(r"(\d{8}T\d{6})\.(.+)")
+"""Time stamp in store file names (UTC), followed by ``.ffffff`` when the time has a fraction."""
+IMUCAL_TIME_FORMAT = "%Y-%m-%d_%H-%M"
+"""Time stamp of imucal's store names (``save_calibration_info``; UTC here)."""
+_STAMP = re.compile(r"(\d{8}T\d{6})(?:\.(\d{1,6}))?\.(.+)")
+_IMUCAL_STAMP = re.compile(r"(\d{4}-\d{2}-\d{2}_\d{2}-\d{2})\.json")
 
 
 class CalibrationStoreError(CalibrationExportError):
@@ -51,43 +61,93 @@ def _ending(fmt: str) -> str:
     return FORMAT_EXTENSIONS[fmt]
 
 
+def imucal_sensor_id(device: str) -> str:
+    """The sensor id an imucal-format file of ``device`` is filed under: the device id
+    lower-cased, everything but ASCII letters and digits removed (``SparkFun-1`` → ``sparkfun1``).
+
+    Raises
+    ------
+    CalibrationStoreError
+        The id has no letter or digit.
+    """
+    sensor = re.sub(r"[^0-9a-z]", "", _check_device(device).lower())
+    if not sensor:
+        raise CalibrationStoreError(f"device {device!r}: expected at least one letter or digit for imucal's "
+                                    "alphanumeric sensor id, found none")
+    return sensor
+
+
+def time_stamp(when: datetime) -> str:
+    """``YYYYmmddTHHMMSS`` of ``when`` in UTC, then ``.`` and its fraction of a second (to the
+    microsecond, trailing zeros dropped) when it has one."""
+    at = _utc(when)
+    stamp = at.strftime(TIME_FORMAT)
+    return stamp if at.microsecond == 0 else stamp + "." + f"{at.microsecond:06d}".rstrip("0")
+
+
 def store_path(store: str | Path, device: str, when: datetime, fmt: str) -> Path:
     """Where a calibration of ``device`` at ``when`` in format ``fmt`` is filed in ``store``.
 
     Returns
     -------
     Path
-        ``store/<device>/<device>_<YYYYmmddTHHMMSS>.<ending>`` (UTC, whole seconds).
+        ``store/<device>/<device>_<YYYYmmddTHHMMSS[.ffffff]>.<ending>`` (UTC); for ``imucal``
+        ``store/<device>/<sensor_id>_<YYYY-mm-dd_HH-MM>.json`` (imucal's own layout, to the minute).
     """
     device = _check_device(device)
-    stamp = _utc(when).strftime(TIME_FORMAT)
-    return Path(store) / device / f"{device}_{stamp}.{_ending(fmt)}"
+    if fmt == "imucal":
+        name = f"{imucal_sensor_id(device)}_{_utc(when).strftime(IMUCAL_TIME_FORMAT)}.json"
+        return Path(store) / device / name
+    return Path(store) / device / f"{device}_{time_stamp(when)}.{_ending(fmt)}"
+
+
+def _parse_name(name: str, device: str, by_ending: dict[str, str]) -> tuple[datetime, str] | None:
+    """(time, format) of a store file name of ``device``, or None when it is not one."""
+    prefix = f"{device}_"
+    if name.startswith(prefix):
+        m = _STAMP.fullmatch(name[len(prefix):])
+        if m is not None and m.group(3) in by_ending:
+            try:
+                when = datetime.strptime(m.group(1), TIME_FORMAT).replace(tzinfo=UTC)
+            except ValueError:
+                return None
+            fraction = m.group(2)
+            if fraction:
+                when = when.replace(microsecond=int(fraction.ljust(6, "0")))
+            return when, by_ending[m.group(3)]
+    try:
+        sensor = f"{imucal_sensor_id(device)}_"
+    except CalibrationStoreError:
+        return None
+    if name.startswith(sensor):
+        m = _IMUCAL_STAMP.fullmatch(name[len(sensor):])
+        if m is not None:
+            try:
+                return datetime.strptime(m.group(1), IMUCAL_TIME_FORMAT).replace(tzinfo=UTC), "imucal"
+            except ValueError:
+                return None
+    return None
 
 
 def stored_calibrations(store: str | Path, device: str, fmt: str | None = None
                         ) -> list[tuple[datetime, str, Path]]:
     """(time, format, path) of every calibration of ``device`` in ``store``, oldest first.
 
-    Files whose names do not follow the store's pattern are ignored.
+    Files whose names follow neither of the store's patterns are ignored (imucal files in ofbe's
+    older layout, ``<device>_<stamp>.imucal.json``, are still found here, though not by imucal).
     """
     device = _check_device(device)
     folder = Path(store) / device
     by_ending = {v: k for k, v in FORMAT_EXTENSIONS.items()}
-    wanted = None if fmt is None else _ending(fmt)
+    if fmt is not None:
+        _ending(fmt)
     found = []
     if folder.is_dir():
-        prefix = f"{device}_"
         for p in folder.iterdir():
-            if not (p.is_file() and p.name.startswith(prefix)):
+            parsed = _parse_name(p.name, device, by_ending) if p.is_file() else None
+            if parsed is None or (fmt is not None and parsed[1] != fmt):
                 continue
-            m = _STAMP.fullmatch(p.name[len(prefix):])
-            if m is None or m.group(2) not in by_ending or (wanted is not None and m.group(2) != wanted):
-                continue
-            try:
-                when = datetime.strptime(m.group(1), TIME_FORMAT).replace(tzinfo=UTC)
-            except ValueError:
-                continue
-            found.append((when, by_ending[m.group(2)], p))
+            found.append((parsed[0], parsed[1], p))
     return sorted(found, key=lambda t: (t[0], t[1]))
 
 
@@ -123,7 +183,8 @@ def find_calibration(store: str | Path, device: str, when: datetime, fmt: str | 
     what = f"{device}{'' if fmt is None else f' ({fmt})'}"
     if not every:
         raise CalibrationNotFoundError(f"{store}: expected a calibration of {what} (files "
-                                       f"{device}/{device}_<YYYYmmddTHHMMSS>.<ending>), found none")
+                                       f"{device}/{device}_<YYYYmmddTHHMMSS>.<ending>, or imucal's "
+                                       f"{device}/<sensor_id>_<YYYY-mm-dd_HH-MM>.json), found none")
     before = [c for c in every if c[0] <= at]
     if not before:
         raise CalibrationNotFoundError(

@@ -15,7 +15,8 @@ prints, one file per device and power cycle (per estimate for predictions):
 One result: ``--out`` is the file (or, an existing folder, the folder it goes in); several:
 ``--out`` is a folder of ``<device>.pc<power_cycle>.<ending>``, built under a temporary name
 and renamed. ``--store DIR`` also files each result as
-``DIR/<device>/<device>_<YYYYmmddTHHMMSS>.<ending>`` (the recording's UTC time; see
+``DIR/<device>/<device>_<YYYYmmddTHHMMSS[.ffffff]>.<ending>`` (the recording's UTC time; imucal
+files in imucal's own layout; see :mod:`ofbe_data.calibration.store` and
 :func:`ofbe_data.find_calibration`). Nothing is written unless every file can be.
 
 Adding a format is one entry in :data:`FORMATS`: a :class:`Format` whose handler turns the
@@ -28,6 +29,7 @@ Exit status: 0 written, 1 bad input data, 2 usage (``ofbe_data.core.cli``).
 from __future__ import annotations
 
 import argparse
+import hashlib
 import os
 import re
 import sys
@@ -41,7 +43,7 @@ import numpy as np
 
 from ofbe_data.calibration import formats as fmt
 from ofbe_data.calibration.noise import RawFiles, attach_raw_times, gyro_noise_of, noise_of
-from ofbe_data.calibration.results import CalibrationResult, Collected, load_results
+from ofbe_data.calibration.results import CalibrationResult, CalibrationSourceError, Collected, load_results
 from ofbe_data.calibration.store import CalibrationStoreError, store_path
 from ofbe_data.core.atomic import atomic_directory, write_bytes_atomic
 from ofbe_data.core.cli import EXIT_DATA, EXIT_OK, EXIT_USAGE, command, fail
@@ -151,11 +153,43 @@ def _ros(args: argparse.Namespace) -> list[ExportFile]:
     return _calibration_files(collected, "ros", lambda r: fmt.ros_file(r, now, args.frame_id, args.ros_node))
 
 
+GGIR_DATA = "ggir-data"
+"""Folder of ``--out`` that ``ggir --ggir-data`` copies the raw files into, under GGIR's names."""
+
+
 def _ggir(args: argparse.Namespace) -> list[ExportFile]:
+    if args.ggir_data and args.raw is None:
+        raise ExportUsageError("--ggir-data needs --raw DIR: the campaign's raw folder to copy the files "
+                               "from")
     collected, _ = _collect(args)
+    if args.ggir_data and collected.kind != "labels":
+        raise ExportUsageError(f"{args.source}: --ggir-data copies the raw files of labels; ofbe-predict's "
+                               "JSON names files GGIR can read under their own names")
     now = written_time()
-    return _calibration_files(collected, "ggir",
-                              lambda r: fmt.ggir_file(r, now, convention=args.g_convention))
+    files = _calibration_files(collected, "ggir",
+                               lambda r: fmt.ggir_file(r, now, convention=args.g_convention))
+    renamed = sorted({raw for r in collected.results for raw in r.raw_files if fmt.ggir_name(raw) != raw})
+    if args.ggir_data:
+        hashes = {f"{s.session}/{Path(s.raw_file).as_posix()}": s.raw_sha256
+                  for r in collected.results for s in r.segments}
+        for raw in renamed:
+            path = args.raw / raw
+            if not path.is_file():
+                raise CalibrationSourceError(f"{path}: expected the labelled raw file, found no such file")
+            data = path.read_bytes()
+            if hashes.get(raw) and hashlib.sha256(data).hexdigest() != hashes[raw]:
+                raise CalibrationSourceError(f"{path}: expected the bytes that were labelled, found a "
+                                             "different file")
+            files.append(ExportFile(f"{GGIR_DATA}/{fmt.ggir_name(raw)}", data))
+        print(f"{PROG}: ggir: {len(renamed)} raw files copied into {GGIR_DATA}/ under the names GGIR matches "
+              "(the filename column; raw_file says which file each is): point GGIR's datadir there",
+              file=sys.stderr)
+    elif renamed:
+        print(f"{PROG}: ggir: GGIR matches a row by the data file's base name: the filename column names "
+              f"each of the {len(renamed)} raw files uniquely (raw_file says which file it is); give GGIR "
+              "the files under those names, or pass --ggir-data --raw DIR to have them copied",
+              file=sys.stderr)
+    return files
 
 
 def _json(args: argparse.Namespace) -> list[ExportFile]:
@@ -271,8 +305,10 @@ def _store_targets(files: Sequence[ExportFile], store: Path, force: bool) -> lis
                                         "found none")
         path = store_path(store, f.device, f.when, f.store_format)
         if path in targets:
+            when = ("minute (imucal's own store names keep minutes only)" if f.store_format == "imucal"
+                    else "time")
             raise CalibrationStoreError(
-                f"{path}: {targets[path].name} and {f.name} would be filed under the same device and second; "
+                f"{path}: {targets[path].name} and {f.name} would be filed under the same device and {when}; "
                 "pass --raw so that each is filed at its own recording's start time")
         if path.exists() and not force:
             raise OutputExistsError(path)
@@ -294,7 +330,9 @@ def write_outputs(files: Sequence[ExportFile], out: Path | None, store: Path | N
     if new_folder and out is not None:
         with atomic_directory(out) as tmp:
             for path, data in out_targets:
-                (tmp / path.name).write_bytes(data)
+                target = tmp / path.relative_to(out)
+                target.parent.mkdir(parents=True, exist_ok=True)
+                target.write_bytes(data)
         written.append(out)
     else:
         for path, data in out_targets:
@@ -335,7 +373,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", help="output file (one result) or folder (several; a trailing / makes it a "
                                  "folder for one)")
     p.add_argument("--store", type=Path,
-                   help="also file each result as STORE/<device>/<device>_<YYYYmmddTHHMMSS>.<ending>")
+                   help="also file each result as STORE/<device>/<device>_<YYYYmmddTHHMMSS[.ffffff]>."
+                        "<ending> (imucal: STORE/<device>/<sensor_id>_<YYYY-mm-dd_HH-MM>.json, imucal's own "
+                        "layout)")
     p.add_argument("--raw", type=Path,
                    help="the campaign's raw folder: recording start times, and the segments kalibr analyses")
     p.add_argument("--frame-id", default=fmt.DEFAULT_FRAME_ID, help="ros: frame_id (default %(default)s)")
@@ -345,6 +385,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--g-convention", choices=fmt.GGIR_CONVENTIONS, default="unit-sphere",
                    help="ggir: GGIR's unit sphere (default: resting readings of norm 1 g) or ofbe's local "
                         "convention (norm g_local/g0)")
+    p.add_argument("--ggir-data", action="store_true",
+                   help="ggir: also copy the raw files (from --raw) into OUT/ggir-data/ under the unique "
+                        "names of the filename column, the names GGIR matches")
     p.add_argument("--rostopic", default=fmt.DEFAULT_ROSTOPIC, help="kalibr: rostopic (default %(default)s)")
     p.add_argument("--gyro-noise-density", type=_positive, metavar="RAD_S_SQRT_HZ",
                    help="kalibr: gyroscope white-noise density, rad/s/sqrt(Hz) (datasheet); default: measured"

@@ -45,6 +45,7 @@ from ofbe_data.calibration.store import (
     CalibrationStoreError,
     find_calibration,
     store_path,
+    stored_calibrations,
 )
 from ofbe_data.io.formats import read_device_file
 from ofbe_data.io.gravity import G0
@@ -101,6 +102,10 @@ def scaled_labels(campaign, tmp_path_factory) -> Path:
         frame[list(MATRIX_COLUMNS)] = np.nan  # a label file from before the a_* columns
         pq.write_table(pa.Table.from_pandas(frame, schema=table.schema, preserve_index=False), out / f.name)
     return out
+
+
+MP_GGIR_NAME = "mp-pc002__rec-01__sparkfun-1.csv"
+"""GGIR's name for the raw file :func:`_one_raw` reads (session, recording, file)."""
 
 
 def _one_raw(campaign: Path, campaign_name: str, session: str, device: str) -> np.ndarray:
@@ -239,10 +244,12 @@ def test_ggir_formula_equals_ofbe_correction(campaign, scaled_labels, scaled) ->
     assert r.scale_known
     table = pd.read_csv(io.BytesIO(fmt.ggir_file(r, WRITTEN, convention="local")))
     assert tuple(table.columns) == fmt.GGIR_COLUMNS and table.columns[0] == "filename"
-    assert list(table["filename"]) == ["sparkfun-1.csv"] and list(table["bias_kind"]) == [ZERO_G_OFFSET]
+    raw_files = [f"mp-pc002/rec-0{k}/sparkfun-1.csv" for k in range(1, 7)]
+    assert list(table["raw_file"]) == raw_files and set(table["bias_kind"]) == {ZERO_G_OFFSET}
+    assert list(table["filename"]) == [f.replace("/", "__") for f in raw_files]
     assert "bias_kind zero-g-offset" in table["QCmessage"][0]
     scale_g, offset_g, temp_g, _ = _ggir_backup_coefficients(fmt.ggir_file(r, WRITTEN, convention="local"),
-                                                             "sparkfun-1.csv")
+                                                             MP_GGIR_NAME)
     assert np.all(temp_g == 0)
     assert np.all(np.sign(offset_g) == -np.sign(r.bias))  # GGIR adds its offset
     raw = _one_raw(campaign, "mp", "mp-pc002", "sparkfun-1")
@@ -253,7 +260,7 @@ def test_ggir_formula_equals_ofbe_correction(campaign, scaled_labels, scaled) ->
 def test_ggir_default_is_its_own_unit_sphere_and_no_cell_is_empty(campaign, apparent_labels) -> None:
     r = results_from_labels(campaign / "labels" / "mp").results[1]
     data = fmt.ggir_file(r, WRITTEN)  # default: GGIR's convention
-    scale_g, offset_g, _, meantempcal = _ggir_backup_coefficients(data, "sparkfun-1.csv")
+    scale_g, offset_g, _, meantempcal = _ggir_backup_coefficients(data, MP_GGIR_NAME)
     assert r.temperature_c is None and meantempcal == 0.0 and "temperature unknown" in data.decode()
     raw = _one_raw(campaign, "mp", "mp-pc002", "sparkfun-1")
     ggir = fmt.ggir_apply(raw / G0, scale_g, offset_g)
@@ -269,12 +276,23 @@ def test_ggir_default_is_its_own_unit_sphere_and_no_cell_is_empty(campaign, appa
         assert table[numeric].notna().all().all()
 
 
-def test_ggir_writes_a_row_per_raw_file(campaign, apparent_labels) -> None:
+def test_ggir_gives_every_raw_file_its_own_row(campaign, apparent_labels) -> None:
+    """GGIR matches by base name and every raw file is <device>.csv: each recording gets its own
+    unique name (session and recording folders in it), and GGIR's lookup finds each one."""
     r = results_from_labels(apparent_labels).results[0]
-    table = pd.read_csv(io.BytesIO(fmt.ggir_file(r, WRITTEN)))
-    assert len(table) == 1 and table["power_cycle"][0] == 1  # six recordings of one file name each
+    data = fmt.ggir_file(r, WRITTEN)
+    table = pd.read_csv(io.BytesIO(data))
+    raw_files = sorted({f"{s.session}/{s.raw_file}" for s in r.segments})  # poses share a file
+    assert len(table) == len(raw_files) == 6 and set(table["power_cycle"]) == {1}
+    assert list(table["raw_file"]) == raw_files and table["filename"].is_unique
+    assert list(table["filename"]) == [f.replace("/", "__") for f in raw_files]
+    for name in table["filename"]:
+        scale, offset, _, _ = _ggir_backup_coefficients(data, name)
+        assert np.array_equal(offset, table[["offset.x", "offset.y", "offset.z"]].to_numpy()[0])
     ga = results_from_labels(campaign / "labels" / "ga").results
-    assert all(len(pd.read_csv(io.BytesIO(fmt.ggir_file(x, WRITTEN)))) == 1 for x in ga)
+    names = [n for x in ga for n in pd.read_csv(io.BytesIO(fmt.ggir_file(x, WRITTEN)))["filename"]]
+    assert len(names) == len(set(names)) == 6  # 2 boards x 3 power cycles, one file each
+    assert fmt.ggir_name("walk.csv") == "walk.csv"  # a prediction's file keeps its own name
 
 
 # ----------------------------------------------------------------------------- ROS
@@ -416,7 +434,7 @@ def test_raw_files_give_recording_times_and_are_checked(campaign, tmp_path) -> N
     got = attach_raw_times(results_from_labels(campaign / "labels" / "mp"), raw)
     for r in got.results:
         starts = [raw.recording(s, r.device).start_utc for s in r.segments]
-        assert r.time_source == TIME_RAW and r.time_utc == min(starts).replace(microsecond=0)
+        assert r.time_source == TIME_RAW and r.time_utc == min(starts)  # to the millisecond of the header
     assert got.results[0].time_utc < got.results[1].time_utc
     seg = replace(got.results[0].segments[0], raw_sha256="0" * 64)
     with pytest.raises(CalibrationSourceError, match="expected the bytes that were labelled"):
@@ -441,7 +459,7 @@ def test_store_finds_the_latest_at_or_before(tmp_path) -> None:
     assert find(tmp_path, "sparkfun-1", t0).name == "sparkfun-1_20250314T090030.json"
     assert find(tmp_path, "sparkfun-1", t0 + timedelta(days=5)).name == "sparkfun-1_20250314T090030.json"
     assert find(tmp_path, "sparkfun-1", t0 + timedelta(days=12), "ros").name.endswith("0324T090030.ros.yaml")
-    assert find(tmp_path, "sparkfun-1", t0 + timedelta(days=30)).name.endswith(".imucal.json")
+    assert find(tmp_path, "sparkfun-1", t0 + timedelta(days=30)).name == "sparkfun1_2025-04-03_09-00.json"
     naive = (t0 + timedelta(days=30)).replace(tzinfo=None)  # taken as UTC
     assert find(tmp_path, "sparkfun-1", naive, "json").name == "sparkfun-1_20250324T090030.json"
     with pytest.raises(CalibrationStoreError, match="several formats"):
@@ -454,3 +472,23 @@ def test_store_finds_the_latest_at_or_before(tmp_path) -> None:
         find(tmp_path, "sparkfun-1", t0, "kalibr")
     with pytest.raises(CalibrationStoreError, match="expected an id"):
         find(tmp_path, "..", t0)
+
+
+def test_store_keeps_fractions_of_a_second_and_reads_older_names(tmp_path) -> None:
+    t0 = datetime(2025, 3, 14, 9, 0, 30, 512000, tzinfo=UTC)
+    p = store_path(tmp_path, "SparkFun_1", t0, "json")
+    assert p.name == "SparkFun_1_20250314T090030.512.json"
+    seven = store_path(tmp_path, "d", t0.replace(microsecond=7), "ros")
+    assert seven.name == "d_20250314T090030.000007.ros.yaml"
+    assert store_path(tmp_path, "SparkFun_1", t0, "imucal").name == "sparkfun1_2025-03-14_09-00.json"
+    p.parent.mkdir()
+    p.write_text("x")
+    older = tmp_path / "SparkFun_1" / "SparkFun_1_20250314T090030.imucal.json"  # before imucal's layout
+    older.write_text("x")
+    got = stored_calibrations(tmp_path, "SparkFun_1")
+    assert [(w, f, q.name) for w, f, q in got] == [
+        (t0.replace(microsecond=0), "imucal", older.name), (t0, "json", p.name)]
+    assert find_calibration(tmp_path, "SparkFun_1", t0 - timedelta(microseconds=1)) == older
+    assert find_calibration(tmp_path, "SparkFun_1", t0) == p
+    with pytest.raises(CalibrationStoreError, match="at least one letter or digit"):
+        store_path(tmp_path, "-_-", t0, "imucal")

@@ -159,6 +159,24 @@ def test_kalibr_without_gyroscope_data_asks_for_the_values(tmp_path, campaign, c
     assert exit_.value.code == 2 and "expected a positive number, found '-1'" in capsys.readouterr().err
 
 
+def test_ggir_data_copies_the_raw_files_under_the_names_ggir_matches(tmp_path, campaign, capsys) -> None:
+    code, _, err = _run(capsys, "ggir", campaign / "labels" / "ga", "--out", tmp_path / "plain")
+    assert code == 0 and "give GGIR the files under those names, or pass --ggir-data --raw DIR" in err
+    code, _, err = _run(capsys, "ggir", campaign / "labels" / "ga", "--out", tmp_path / "g",
+                        "--raw", campaign / "raw" / "ga", "--ggir-data")
+    assert code == 0, err
+    assert "6 raw files copied into ggir-data/" in err
+    tables = [pd.read_csv(p) for p in sorted((tmp_path / "g").glob("*.ggir.csv"))]
+    rows = pd.concat(tables)
+    copied = sorted(p.name for p in (tmp_path / "g" / "ggir-data").iterdir())
+    assert copied == sorted(rows["filename"]) and len(copied) == 6  # one GGIR row per copied file
+    for name, raw in zip(rows["filename"], rows["raw_file"], strict=True):
+        copy = (tmp_path / "g" / "ggir-data" / name).read_bytes()
+        assert copy == (campaign / "raw" / "ga" / raw).read_bytes()
+    code, _, err = _run(capsys, "ggir", campaign / "labels" / "ga", "--out", tmp_path / "h", "--ggir-data")
+    assert code == 2 and "--ggir-data needs --raw DIR" in err and not (tmp_path / "h").exists()
+
+
 def test_one_result_goes_to_the_file_named(tmp_path, campaign, capsys) -> None:
     from imucal.management import load_calibration_info
 
@@ -207,9 +225,41 @@ def test_store_files_by_recording_time_and_finds_the_one_in_force(tmp_path, camp
     assert [d["power_cycle"] for d in docs] == [1, 2, 3] and {d["time_source"] for d in docs} == {TIME_RAW}
     m = load_manifest(campaign / "raw" / "ga" / "ga-pc002")
     start = read_device_file(m.file_path(m.recordings[0], "sparkfun-1"), m.devices["sparkfun-1"]).start_utc
-    assert files[1].name == f"sparkfun-1_{start.strftime('%Y%m%dT%H%M%S')}.json"
+    assert start.microsecond != 0  # the simulated header stamps have milliseconds: kept to the microsecond
+    stamp = start.strftime('%Y%m%dT%H%M%S') + "." + f"{start.microsecond:06d}".rstrip("0")
+    assert files[1].name == f"sparkfun-1_{stamp}.json" and docs[1]["time_utc"] == (
+        start.strftime("%Y-%m-%dT%H:%M:%S") + stamp[15:] + "Z")
     assert find_calibration(store, "sparkfun-1", start + timedelta(minutes=5)) == files[1]
-    assert find_calibration(store, "sparkfun-1", start - timedelta(seconds=1)) == files[0]
+    assert find_calibration(store, "sparkfun-1", start) == files[1]
+    assert find_calibration(store, "sparkfun-1", start - timedelta(microseconds=1000)) == files[0]
+
+
+def test_imucal_store_is_found_by_imucal_itself(tmp_path, campaign, capsys) -> None:
+    """imucal files go into the store under imucal's own names, so that imucal's
+    find_calibration_info_for_sensor and find_closest_calibration_info_to_date find them."""
+    from imucal.management import (
+        find_calibration_info_for_sensor,
+        find_closest_calibration_info_to_date,
+        load_calibration_info,
+    )
+
+    store = tmp_path / "store"
+    code, _, err = _run(capsys, "imucal", campaign / "labels" / "ga", "--raw", campaign / "raw" / "ga",
+                        "--store", store)
+    assert code == 0, err
+    for device, sensor in (("sparkfun-1", "sparkfun1"), ("sparkfun-2", "sparkfun2")):
+        found = sorted(find_calibration_info_for_sensor(sensor, store))
+        assert found == sorted((store / device).iterdir()) and len(found) == 3
+        labels = read_labels(campaign / "labels" / "ga")
+        for pc in (1, 2, 3):
+            m = load_manifest(campaign / "raw" / "ga" / f"ga-pc00{pc}")
+            start = read_device_file(m.file_path(m.recordings[0], device), m.devices[device]).start_utc
+            path = find_closest_calibration_info_to_date(sensor, start.replace(tzinfo=None), store)
+            assert path.name == f"{sensor}_{start.strftime('%Y-%m-%d_%H-%M')}.json"
+            assert find_calibration(store, device, start, "imucal") == path  # ofbe's look-up agrees
+            rows = labels[(labels.device == device) & (labels.power_cycle == pc)]
+            bias = rows[["bias_x", "bias_y", "bias_z"]].to_numpy().mean(axis=0)
+            np.testing.assert_allclose(load_calibration_info(path).b_a, bias, rtol=0, atol=1e-12)
 
 
 def test_store_collisions_write_nothing(tmp_path, campaign, capsys) -> None:
