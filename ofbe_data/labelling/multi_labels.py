@@ -77,8 +77,12 @@ def pose_fit_columns(choice: ModelChoice) -> dict[str, Any]:
         return map_from_params(x, model)
 
     if base_model(model) != "offset":
-        matrix_se = derived_se(lambda x: to_matrix(x).ravel(), fit.params, fit.covariance).reshape(3, 3)
-        cols.update(map_columns(fit.matrix, np.where(_fixed_entries(model), np.nan, matrix_se)))
+        if fit.matrix_se is not None:  # the six-face fit: a general A, each entry fitted
+            matrix_se = fit.matrix_se
+        else:
+            matrix_se = derived_se(lambda x: to_matrix(x).ravel(), fit.params, fit.covariance).reshape(3, 3)
+            matrix_se = np.where(_fixed_entries(model), np.nan, matrix_se)
+        cols.update(map_columns(fit.matrix, matrix_se))
         cols.update(scale_columns(to_matrix, fit.params, fit.covariance))
     if has_temperature(model):
         cols["temp_ref_c"] = fit.temp_ref_c
@@ -170,7 +174,7 @@ def _fit_device(out: SessionLabels, dev: DeviceSpec, rows: list[dict[str, Any]],
     temps = _temperatures(rows)
     groups = direction_groups(means)
     choice = choose_fit(means, g, params.fit_model, params.multi_position_max_condition, params.fit_alpha,
-                        temps)
+                        temps, np.array([r["n_samples"] for r in rows], dtype=np.float64))
     fit = choice.fit
     if not fit.determined:
         need = min_poses("offset" if params.fit_model == "auto" else params.fit_model)

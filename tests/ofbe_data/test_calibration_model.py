@@ -29,7 +29,14 @@ from ofbe_data.labelling.conventions import (
     triangular_part,
 )
 from ofbe_data.labelling.labels import LabelParams
-from ofbe_data.labelling.multiposition import choose_fit, fit_poses, min_poses
+from ofbe_data.labelling.multiposition import (
+    SIX_FACES,
+    choose_fit,
+    ferraris_solution,
+    fit_poses,
+    fit_six_faces,
+    min_poses,
+)
 from ofbe_data.labelling.store import read_labels
 from ofbe_data.simulator import load_config, simulate_campaign
 from tests.conftest import imucal_still_norms
@@ -221,15 +228,66 @@ def test_poses_in_one_plane_fit_no_richer_model() -> None:
     assert "poses do not span three dimensions" in choice.reason and "condition" in choice.reason
 
 
-def test_six_faces_do_not_determine_non_orthogonality() -> None:
-    rng = np.random.default_rng(7)
-    faces = np.vstack([np.eye(3), -np.eye(3)])
+def _six_faces(rng: np.random.Generator, tilt_deg: float, repeats: int = 3) -> tuple[np.ndarray, np.ndarray]:
+    """(means (6·repeats, 3), A): a triad with non-orthogonality on a cube's six faces, each face
+    tilted by up to ``tilt_deg`` about a random horizontal axis, 0.05 mg of noise per pose mean."""
     a = matrix_from_imutk([1.01, 0.99, 1.02], np.radians([0.3, -0.2, 0.4]))
-    means = G * np.repeat(faces, 3, axis=0) @ a.T + 0.05 + rng.normal(scale=5e-4, size=(18, 3))
+    faces = np.repeat(np.vstack([np.eye(3), -np.eye(3)])[[0, 3, 1, 4, 2, 5]], repeats, axis=0)
+    u = []
+    for f in faces:
+        axis = np.cross(f, rng.normal(size=3))
+        angle = np.radians(tilt_deg) * rng.uniform(0.5, 1.0)
+        k = axis / np.linalg.norm(axis)
+        u.append(f * np.cos(angle) + np.cross(k, f) * np.sin(angle))
+    return G * np.array(u) @ a.T + 0.05 + rng.normal(scale=0.05 * MG, size=(len(u), 3)), a
+
+
+def test_six_faces_leave_the_norms_blind_and_the_six_face_fit_takes_over() -> None:
+    """The norms of six faces cannot see non-orthogonality; opposite faces that are opposite
+    can (Ferraris): on a square cube the ladder takes the six-face fit, recovers A (the cube's
+    frame is the generating frame) and the offsets, and its standard errors cover the errors."""
+    rng = np.random.default_rng(7)
+    means, a = _six_faces(rng, tilt_deg=0.0)
     choice = choose_fit(means, G)
-    assert choice.fit.model == "scale-offset"
+    assert choice.fit.model == "full" and choice.fit.how == SIX_FACES, choice.reason
     assert "full not fitted: poses do not determine the full model's parameters (condition" in choice.reason
-    assert np.isfinite(choice.fit.condition)
+    assert "full over scale-offset from six square faces" in choice.reason
+    np.testing.assert_allclose(choice.fit.offset, 0.05, atol=0.1 * MG)
+    # one pose per face: 0.05 mg on each face mean puts 3.5e-5 on every entry of A
+    np.testing.assert_allclose(choice.fit.matrix, a, atol=1.5e-4)
+    se = np.sqrt(np.diag(choice.fit.covariance))
+    truth = np.concatenate([[0.05] * 3, [1.01, 0.99, 1.02], np.radians([0.3, -0.2, 0.4])])
+    errors = choice.fit.params - truth
+    assert np.all(np.abs(errors) < 4 * se), errors / se
+    assert choice.fit.dof == means.shape[0] - 6 and np.isfinite(choice.fit.condition)
+
+
+def test_a_tilted_cube_is_for_the_norms_not_the_six_face_fit() -> None:
+    """Faces placed a few degrees off (a hand-held board, a tilted table) are not opposite, and
+    Ferraris' offsets would be off by about g·θ²/4: the six-face fit refuses them. Such poses
+    are spread enough for the norm fit of ``full``, which the ladder takes."""
+    means, a = _six_faces(np.random.default_rng(8), tilt_deg=3.0, repeats=2)
+    faces = fit_six_faces(means, G)
+    assert not faces.determined and faces.reason.startswith("opposite faces ")
+    assert faces.reason.endswith("° from opposite (at most 1°)")
+    choice = choose_fit(means, G)
+    assert choice.fit.model == "full" and choice.fit.how == "norms", choice.reason
+    se = np.sqrt(np.diag(choice.fit.covariance))[:3]  # weakly spread poses: about 0.5 mg
+    assert np.all(np.abs(choice.fit.offset - 0.05) < 4 * se), (choice.fit.offset - 0.05) / se
+    assert fit_six_faces(means[:10], G).reason == "no pose within 15° of face -z"
+
+
+def test_the_six_face_fit_is_imucals_ferraris() -> None:
+    """On six face means, b and A are imucal's Ferraris formulas (Eq. 19-23 of its code):
+    b_a = diag(U_p + U_n)/2, K_a·R_a = (U_p − U_n)/(2g)."""
+    rng = np.random.default_rng(9)
+    means, _ = _six_faces(rng, tilt_deg=0.5, repeats=1)
+    b, a = ferraris_solution(means, G)
+    u_p, u_n = means[0::2].T, means[1::2].T  # imucal's U_a_p, U_a_n: columns x, y, z
+    np.testing.assert_array_equal(b, np.diag((u_p + u_n) / 2))
+    d = u_p - u_n
+    k = np.diag(np.sqrt(np.diag(d @ d.T) / (4 * G ** 2)))
+    np.testing.assert_allclose(a, k @ (np.linalg.inv(k) @ d / (2 * G)), rtol=1e-14)
 
 
 def test_a_temperature_slope_is_fitted_where_the_poses_span_five_degrees() -> None:
