@@ -244,7 +244,7 @@ class RawFiles:
             raise CalibrationSourceError(f"{self.raw_dir}: expected the campaign's raw folder (--raw), "
                                          "found no such folder")
         self._manifests: dict[str, SessionManifest] = {}
-        self._recordings: dict[tuple[str, str], Recording] = {}
+        self._recordings: dict[tuple[str, str, str], Recording] = {}
 
     def manifest(self, session: str) -> SessionManifest:
         if session not in self._manifests:
@@ -257,7 +257,7 @@ class RawFiles:
 
     def recording(self, seg: Segment, device: str) -> Recording:
         """The raw file of a label row, read by its manifest's format, its hash checked."""
-        key = (seg.session, seg.raw_file)
+        key = (seg.session, seg.raw_file, device)  # one file may hold two devices' columns
         if key not in self._recordings:
             m = self.manifest(seg.session)
             path = self.raw_dir / seg.session / seg.raw_file

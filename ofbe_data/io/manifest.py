@@ -463,17 +463,33 @@ def _parse_recordings(v: _Validator, data: dict[str, Any], devices: dict[str, De
                 raise v.fail([*where, "files"], f"a file for declared device {dev!r}",
                              "no entry for it")
         clean: dict[str, str] = {}
+        here: dict[str, str] = {}
         for dev, rel in files.items():
             fw: list[str | int] = [*where, "files", str(dev)]
             rel = _check_path(v, folder, rel, fw)
             key = os.path.normpath(rel)
-            if key in seen_paths:
-                raise v.fail(fw, "a file used by one device in one recording only",
+            if key in here:  # two triads of one file: each device reads its own columns
+                other = here[key]
+                if not _distinct_columns(devices[other], devices[str(dev)]):
+                    raise v.fail(fw, "a file shared by devices of one recording only when each reads its "
+                                 "own columns (format csv, different ax, ay, az)",
+                                 f"{rel!r}, also named for device {other!r}")
+            elif key in seen_paths:
+                raise v.fail(fw, "a file used in one recording only",
                              f"{rel!r}, also named at {seen_paths[key]}")
             seen_paths[key] = format_field(fw)
+            here.setdefault(key, str(dev))
             clean[str(dev)] = rel
         out.append(RecordingSpec(rid, clean, nominal))
     return tuple(out)
+
+
+def _distinct_columns(a: DeviceSpec, b: DeviceSpec) -> bool:
+    """Whether two devices read different acceleration columns of one file (both generic csv)."""
+    if a.csv is None or b.csv is None:
+        return False
+    axes = ("ax", "ay", "az")
+    return not set(a.csv.columns[k] for k in axes) & set(b.csv.columns[k] for k in axes)
 
 
 _TOP_KEYS = {"format", "campaign", "session", "kind", "site", "gravity_mps2", "power_cycle",

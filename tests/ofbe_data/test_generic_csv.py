@@ -250,3 +250,38 @@ def test_manifest_round_trips_every_key(tmp_path: Path) -> None:
     again = m.duts[0].to_dict()
     assert again["lsb_per_g"] == [256.0, 256.0, 250.0] and again["zero_counts"] == 512.0
     assert again["columns"] == {"ax": 0, "ay": 1, "az": 2, "temperature": 3}
+
+
+def test_one_file_feeds_two_devices_each_by_its_own_columns(tmp_path: Path) -> None:
+    """Two accelerometer triads logged in one semicolon file (a common fixture layout): each
+    device reads its own columns and gets its own label; the same columns twice, or a format
+    without columns, cannot share a file."""
+    from ofbe_data.labelling.labels import LabelParams, label_session
+
+    rng = np.random.default_rng(4)
+    n, g = 6000, 9.80665
+    bias = {"imu_a": np.array([0.02, -0.03, 0.05]), "imu_b": np.array([-0.04, 0.01, -0.02])}
+    cols = {d: np.array([0.0, 0.0, g]) + b + 0.01 * rng.standard_normal((n, 3)) for d, b in bias.items()}
+    both = np.hstack([cols["imu_a"], cols["imu_b"]])
+    lines = ["t;a1x;a1y;a1z;a2x;a2y;a2z"] + [f"{i / 100:.2f};" + ";".join(f"{v:.5f}" for v in both[i])
+                                              for i in range(n)]
+    folder = tmp_path / "camp" / "s1"
+    folder.mkdir(parents=True)
+    (folder / "both.csv").write_text("\n".join(lines) + "\n")
+    dev = ("    model: X\n    role: dut\n    format: csv\n    delimiter: ';'\n    columns: {{t: t, ax: {0}x, "
+           "ay: {0}y, az: {0}z}}\n")
+    (folder / "session.yaml").write_text(
+        "format: ofbe-session/1\ncampaign: camp\nsession: s1\nkind: gravity-aligned\n"
+        f"site: {{gravity_mps2: {g}}}\npower_cycle: 1\ndevices:\n  imu_a:\n" + dev.format("a1")
+        + "  imu_b:\n" + dev.format("a2")
+        + "recordings:\n  - id: r1\n    files: {imu_a: both.csv, imu_b: both.csv}\n")
+    labels = label_session(folder, LabelParams(min_samples=1000))
+    assert labels.rejections == [] and sorted(r["device"] for r in labels.rows) == ["imu_a", "imu_b"]
+    for r in labels.rows:
+        got = np.array([r[f"bias_{a}"] for a in "xyz"])
+        np.testing.assert_allclose(got, bias[r["device"]], atol=1e-3)  # 0.01 m/s² noise over 6000 samples
+    text = (folder / "session.yaml").read_text().replace("ax: a2x", "ax: a1x")
+    (folder / "session.yaml").write_text(text)
+    with pytest.raises(ManifestError, match=r"recordings\[0\]\.files\.imu_b: expected a file shared by "
+                                            r"devices of one recording only when each reads its own columns"):
+        load_manifest(folder)

@@ -151,7 +151,11 @@ def test_same_file_twice(tmp_path):
     err = _error(tmp_path, VALID.replace("memsense: rec-02/memsense.csv",
                                          "memsense: rec-02/./sparkfun-1.csv"))
     assert err.field == "recordings[1].files.memsense"
-    assert "also named at recordings[1].files.sparkfun-1" in err.found
+    assert err.found == "'rec-02/./sparkfun-1.csv', also named for device 'sparkfun-1'"
+    assert "each reads its own columns (format csv, different ax, ay, az)" in err.expected
+    err = _error(tmp_path, VALID.replace("memsense: rec-02/memsense.csv", "memsense: rec-01/memsense.csv"))
+    assert err.field == "recordings[1].files.memsense"
+    assert "also named at recordings[0].files.memsense" in err.found and "one recording only" in err.expected
 
 
 def test_rotated_needs_exactly_one_reference(tmp_path):
