@@ -229,13 +229,41 @@ def _medians_within(blocks: np.ndarray, overall: float) -> bool:
     return True
 
 
+MIN_CLIP_LEVELS = 5
+"""Distinct values an axis needs before a pile-up at its extreme is taken for clipping: with
+fewer (a coarse sensor, a quiet one), which level holds more samples is set by where the
+quantisation thresholds fall, not by a range."""
+MOSTLY_CLIPPED = 0.9
+"""Share of an axis' samples at its extreme from which an axis of few levels counts as clipped
+while the other axes vary (an unclipped quiet axis piles up there only with σ ≲ 0.15 LSB)."""
+MIN_CLIP_RATIO = 2.0
+"""A clipped extreme holds at least this many times the samples of the value next to it (a
+clip 3σ out of a noise spanning many levels gives about 3, nearer the mean far more)."""
+
+
+def without_repeats(x: np.ndarray) -> np.ndarray:
+    """(M, 3) ``x`` without the samples equal to the one before (an oversampling logger writes
+    each reading several times, which would multiply every count)."""
+    x = np.asarray(x, dtype=np.float64)
+    if x.shape[0] < 2:
+        return x
+    keep = np.ones(x.shape[0], dtype=bool)
+    keep[1:] = np.any(x[1:] != x[:-1], axis=1)
+    return x if keep.all() else x[keep]
+
+
 def clipped_samples(x: np.ndarray, min_count: int = 5, min_fraction: float = 0.01,
-                    ) -> tuple[int, int, float] | None:
-    """Samples piled up at an axis' extreme value (clipping), as (count, axis, value), or None.
+                    ) -> tuple[int, int, float, bool] | None:
+    """Samples piled up at an axis' extreme value (clipping), as (count, axis, value, whole), or None.
 
     A clipped axis reads its limit again and again: the extreme value then occurs more often
-    than the value next to it. Noise instead thins out towards its extremes, so its largest
-    value is rarer than the next one, however coarse the quantisation.
+    (:data:`MIN_CLIP_RATIO` times) than the value next to it. Noise instead thins out towards
+    its extremes, so its largest value is rarer than the next one. Repeated samples
+    (:func:`without_repeats`) are counted once. An axis with fewer than :data:`MIN_CLIP_LEVELS`
+    distinct values (a coarse or quiet sensor) is judged clipped only when its extreme holds
+    :data:`MOSTLY_CLIPPED` of its samples while every other axis varies over that many values; one that
+    holds a single value for the whole segment while the others vary so is clipped (or stuck)
+    as a whole: ``whole`` True.
 
     Parameters
     ----------
@@ -244,7 +272,7 @@ def clipped_samples(x: np.ndarray, min_count: int = 5, min_fraction: float = 0.0
     min_count, min_fraction
         The extreme must occur at least this often (and in this fraction of the samples).
     """
-    x = np.asarray(x, dtype=np.float64)
+    x = without_repeats(x)
     n = x.shape[0]
     need = max(min_count, min_fraction * n)
     columns = np.ascontiguousarray(x.T)  # contiguous columns: the counts and extremes are exact either way
@@ -253,14 +281,27 @@ def clipped_samples(x: np.ndarray, min_count: int = 5, min_fraction: float = 0.0
         if col.size == 0:
             continue
         hi, lo = col.max(), col.min()
+        if hi == lo and np.isfinite(hi) and n >= need:
+            if _others_vary(columns, k):
+                return n, k, float(hi), True
+            continue
         if not (np.isfinite(hi) and np.isfinite(lo)) or hi == 0.0 or lo == 0.0:
             # NaN, infinities or a signed zero at an end: np.unique's own grouping decides
             found = _clipped_by_unique(col, need)
         else:
             found = _clipped_at_ends(col, hi, lo, need)
-        if found is not None:
-            return found[0], k, found[1]
+        if found is None:
+            continue
+        mostly = found[0] >= MOSTLY_CLIPPED * n and _others_vary(columns, k)
+        if mostly or np.unique(col).size >= MIN_CLIP_LEVELS:
+            return found[0], k, found[1], False
     return None
+
+
+def _others_vary(columns: np.ndarray, k: int) -> bool:
+    """Whether every axis but ``k`` takes :data:`MIN_CLIP_LEVELS` distinct values or more: the
+    sensor's noise spans many levels, so an axis held at (mostly) one value is clipped."""
+    return all(np.unique(columns[j]).size >= MIN_CLIP_LEVELS for j in range(columns.shape[0]) if j != k)
 
 
 def _clipped_by_unique(col: np.ndarray, need: float) -> tuple[int, float] | None:
@@ -269,7 +310,7 @@ def _clipped_by_unique(col: np.ndarray, need: float) -> tuple[int, float] | None
         return None
     for end, neighbour in ((-1, -2), (0, 1)):
         c = int(counts[end])
-        if c >= need and c > counts[neighbour]:
+        if c >= need and c > MIN_CLIP_RATIO * counts[neighbour]:
             return c, float(values[end])
     return None
 
@@ -285,7 +326,7 @@ def _clipped_at_ends(col: np.ndarray, hi: float, lo: float, need: float) -> tupl
             continue
         rest = col[beyond]
         nxt = rest.max() if value == hi else rest.min()
-        if c > int(np.count_nonzero(col == nxt)):
+        if c > MIN_CLIP_RATIO * int(np.count_nonzero(col == nxt)):
             return c, float(value)
     return None
 

@@ -44,6 +44,7 @@ from ofbe_data.labelling.checks import (
     MAX_LEVEL_TILT_DEG,
     MAX_MOUNT_ERROR_DEG,
     MAX_NORM_DEVIATION,
+    MIN_CLIP_RATIO,
     UNEVEN_STEP_CV,
     WARN_LEVEL_TILT_DEG,
     WARN_RATE_DEVIATION,
@@ -335,10 +336,15 @@ def _quality(rec: Recording, seg: _Segment, params: LabelParams, g: float, min_s
     x = rec.acc[seg.start:seg.stop]
     clipped = clipped_samples(x)
     if clipped is not None:
-        count, k, value = clipped
+        count, k, value, whole = clipped
+        if whole:
+            return SATURATED, (f"the {'xyz'[k]} axis reads {value:.5g} m/s² on every sample of the "
+                               "stationary segment while the others vary: clipped at the logger's range, "
+                               "or stuck "
+                               "(record with a wider range)")
         return SATURATED, (f"{count} of {n} samples of the stationary segment sit at the same extreme "
-                           f"{'xyz'[k]} value {value:.5g} m/s², more than the value next to it: clipping at "
-                           "the logger's range? (state range_g, or record with a wider range)")
+                           f"{'xyz'[k]} value {value:.5g} m/s², more than {MIN_CLIP_RATIO:g} times the value "
+                           "next to it: clipping at the logger's range? (record with a wider range)")
     norm = norm_problem(mean, g, params.max_norm_deviation)
     if norm is not None:
         return IMPLAUSIBLE_NORM, norm

@@ -419,7 +419,8 @@ def test_values_clipped_at_the_loggers_range_are_saturation(tmp_path: Path) -> N
     (rej,) = [r for r in labels.rejections if r.device == "sparkfun-1"]
     assert rej.reason == "saturated"
     assert re.match(r"\d+ of \d+ samples of the stationary segment sit at the same extreme z value "
-                    r"9\.80\d* m/s², more than the value next to it: clipping at the logger's range\?",
+                    r"9\.80\d* m/s², more than 2 times the value next to it: clipping at the logger's "
+                    r"range\? \(record with a wider range\)",
                     rej.detail), rej.detail
 
 
@@ -434,7 +435,41 @@ def test_unclipped_quantised_noise_is_not_saturation() -> None:
         assert clipped_samples(x) is None, sigma
     x = np.rint(rng.normal([3.0, -2.0, 260.0], 2.0, (5000, 3)))
     x[:, 2] = np.minimum(x[:, 2], 259.0)
-    assert clipped_samples(x)[1:] == (2, 259.0)
+    assert clipped_samples(x)[1:] == (2, 259.0, False)
+
+
+def test_oversampled_or_coarse_readings_are_not_saturation() -> None:
+    """Issue 22: a logger that writes each reading four times, and a sensor whose axis takes
+    two or three levels, looked like a pile-up at an extreme."""
+    import numpy as np
+
+    from ofbe_data.labelling.checks import clipped_samples
+
+    rng = np.random.default_rng(5)
+    x = np.rint(rng.normal([3.0, -2.0, 260.0], 1.5, (3000, 3)))
+    assert clipped_samples(x) is None
+    assert clipped_samples(np.repeat(x, 4, axis=0)) is None  # oversampled: each reading 4 times
+    for p in (0.3, 0.45, 0.7):  # an axis that takes two levels only (a quiet, coarse sensor)
+        coarse = x.copy()
+        coarse[:, 0] = np.where(rng.random(3000) < p, -0.27, -0.23)
+        assert clipped_samples(coarse) is None, p
+    clipped = np.repeat(x, 4, axis=0)
+    clipped[:, 2] = np.minimum(clipped[:, 2], 259.0)  # really clipped, and oversampled
+    assert clipped_samples(clipped)[1:] == (2, 259.0, False)
+
+
+def test_an_axis_clipped_on_every_sample_is_saturation(tmp_path: Path) -> None:
+    """Issue 24: z held at the range on every sample was labelled (bias_z −0.006 m/s² where the
+    unclipped data give +0.288); partial clipping was already rejected."""
+    session = _copy_session(tmp_path / "s")
+    f = session / "rec-01" / "sparkfun-1.csv"
+    head, rows = _logger_rows(f)
+    _write_logger(f, head, [[t, ax, ay, 250] for t, ax, ay, az in rows])
+    labels = _label(session, tmp_path)
+    (rej,) = [r for r in labels.rejections if r.device == "sparkfun-1"]
+    assert rej.reason == "saturated" and rej.detail == (
+        "the z axis reads 9.5768 m/s² on every sample of the stationary segment while the others vary: "
+        "clipped at the logger's range, or stuck (record with a wider range)"), rej.detail
 
 
 def test_a_mount_that_contradicts_the_reference_is_a_mount_mismatch(tmp_path: Path) -> None:
