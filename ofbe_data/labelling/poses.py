@@ -108,10 +108,14 @@ class PoseParams:
         variance 2 · floor / window). With 4, noise alone exceeds it with probability 3e-5
         at multiplier 2 (a χ² with 3 degrees of freedom above 24).
     min_noise_mps2, max_noise_mps2
-        Bounds of the noise floor as a standard deviation per axis, m/s². Below 1e-4 (10 µg,
-        under any MEMS accelerometer's noise) the floor is raised to it, so that a noise-free
-        or coarsely quantised signal works; above 0.3 (30 mg, the stationarity check's ceiling)
-        even the quietest part moves, and there is no pose.
+        Bounds of the noise floor as a standard deviation per axis, m/s². Below 5e-3 (0.5 mg)
+        the floor is raised to it: a pose on a table is not stiller than that (building
+        vibration, a jig settling, drift within a second), so a quiet sensor's own noise
+        (an ADXL355 at 0.2 mg) would put every threshold below what its still poses do and
+        split or drop them, while a noisy one's (an ADXL345 at 3.5 mg) is far above it. Handling
+        moves the reading by tens of mg, far beyond the raised threshold; a noise-free or
+        coarsely quantised signal works too. Above 0.3 (30 mg, the stationarity check's
+        ceiling) even the quietest part moves, and there is no pose.
     tie_sigmas
         Residuals within this many standard errors (1/sqrt(2ν) relative, ν degrees of freedom)
         of the smallest are tied; the smallest tied multiplier wins. Past the handling, a higher
@@ -136,7 +140,7 @@ class PoseParams:
     init_quiet_s: float = 1.0
     init_accept_ratio: float = 3.0
     drift_factor: float = 4.0
-    min_noise_mps2: float = 1e-4
+    min_noise_mps2: float = 5e-3
     max_noise_mps2: float = 0.3
     tie_sigmas: float = 2.0
     model: str = AUTO
