@@ -59,6 +59,9 @@ class CsvMapping:
         Full-scale range, g: readings at ±range_g are saturated (None: found from the data).
     gyro_unit
         ``rad/s`` or ``deg/s``: unit of the ``gx``/``gy``/``gz`` columns.
+    sort_by_time
+        Read the rows in the order of their time stamps (a file sorted by another column, e.g.
+        annotated by part); False: rows whose time does not increase are dropped and counted.
     """
 
     columns: dict[str, str | int]
@@ -74,6 +77,7 @@ class CsvMapping:
     temperature_unit: str = "C"
     range_g: float | None = None
     gyro_unit: str = "rad/s"
+    sort_by_time: bool = False
 
     def lsb_axes(self) -> np.ndarray:
         """Counts per g per axis, (3,) (ones when not counts)."""
@@ -111,6 +115,8 @@ class CsvMapping:
             out["range_g"] = self.range_g
         if "gx" in self.columns and self.gyro_unit != "rad/s":
             out["gyro_unit"] = self.gyro_unit
+        if self.sort_by_time:
+            out["sort_by_time"] = True
         return out
 
 

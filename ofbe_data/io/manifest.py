@@ -362,8 +362,14 @@ def _parse_csv_mapping(v: _Validator, entry: dict[str, Any], where: list[str | i
     if entry.get("range_g") is not None:
         range_g = v.number(entry["range_g"], [*where, "range_g"], 1e-3, 1e4)
     gyro_unit = v.choice(entry.get("gyro_unit", "rad/s"), [*where, "gyro_unit"], GYRO_UNITS)
+    sort_by_time = entry.get("sort_by_time", False)
+    if not isinstance(sort_by_time, bool):
+        raise v.fail([*where, "sort_by_time"], "true or false", _describe(sort_by_time))
+    if sort_by_time and ("t" not in columns or time_unit == "samples"):
+        raise v.fail([*where, "sort_by_time"], "a t column of time stamps to sort by",
+                     "no t column" if "t" not in columns else "time_unit: samples")
     return CsvMapping(columns, time_unit, acc_unit, lsb, skip, str(delim), header, comment, rate, zero,
-                      t_unit, range_g, gyro_unit)
+                      t_unit, range_g, gyro_unit, sort_by_time)
 
 
 def _parse_bin_options(v: _Validator, entry: dict[str, Any], where: list[str | int]) -> BinOptions:
@@ -375,7 +381,8 @@ def _parse_bin_options(v: _Validator, entry: dict[str, Any], where: list[str | i
 
 
 _CSV_KEYS = {"columns", "time_unit", "acc_unit", "lsb_per_g", "skip_rows", "delimiter", "header", "comment",
-             "sample_rate_hz", "zero_counts", "temperature_unit", "range_g", "gyro_unit"}
+             "sample_rate_hz", "zero_counts", "temperature_unit", "range_g", "gyro_unit",
+             "sort_by_time"}
 _DEVICE_KEYS = {"model", "role", "format", "reference_to_sensor"} | _CSV_KEYS
 
 

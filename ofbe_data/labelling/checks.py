@@ -23,6 +23,14 @@ import numpy as np
 
 from ofbe_data.core.geometry import dot3, mul3, norm3, unit
 from ofbe_data.io.gravity import G0
+from ofbe_data.io.recording import (
+    SKIP_EMPTY,
+    SKIP_FIELD_COUNT,
+    SKIP_NON_INCREASING_TIME,
+    SKIP_NON_NUMERIC,
+    SKIP_OUT_OF_RANGE,
+    ReadDiagnostics,
+)
 from ofbe_data.labelling.stationarity import row_sum
 
 MAX_NORM_DEVIATION = 0.3
@@ -64,14 +72,22 @@ _KNOWN_MISTAKES: tuple[tuple[float, str], ...] = (
 )
 
 
-def likely_mistake(ratio: float) -> str:
+def likely_mistake(ratio: float, counts: bool = False) -> str:
     """The unit or scale mistake that best explains ``‖mean‖ / g_local = ratio``.
 
     A known unit confusion within 10 %, else a power-of-two factor (raw counts read with the
-    wrong ``lsb_per_g``), else a generic description.
+    wrong ``lsb_per_g``), else a generic description. ``counts``: the file holds raw counts
+    scaled by a stated ``lsb_per_g`` (no unit to confuse), so the scale is what is off
+    (a factor of 10 would otherwise read as m/s² declared as g, 9.81).
     """
     if not ratio > 0 or not math.isfinite(ratio):
         return "no signal (all readings zero or not finite)"
+    if counts:
+        k = round(math.log2(ratio))
+        exact = f"2^{k} = {2.0 ** k:g}" if k != 0 and abs(math.log2(ratio) - k) < 0.1 else f"{ratio:.3g}"
+        return (f"counts scaled with the wrong lsb_per_g (the readings come out {exact} times too "
+                f"{'large' if ratio > 1 else 'small'}: lsb_per_g looks {ratio:.3g} times too "
+                f"{'small' if ratio > 1 else 'large'}; check the range and resolution of the logger)")
     for factor, what in _KNOWN_MISTAKES:
         if abs(math.log(ratio / factor)) < math.log(1.1):
             return what
@@ -87,7 +103,8 @@ def likely_mistake(ratio: float) -> str:
     return "a unit or scale mistake, or a sensor that is not at rest"
 
 
-def norm_problem(mean: np.ndarray, g: float, max_deviation: float = MAX_NORM_DEVIATION) -> str | None:
+def norm_problem(mean: np.ndarray, g: float, max_deviation: float = MAX_NORM_DEVIATION,
+                 counts: bool = False) -> str | None:
     """Why a stationary mean cannot be a resting accelerometer's reading, or None.
 
     Parameters
@@ -98,13 +115,15 @@ def norm_problem(mean: np.ndarray, g: float, max_deviation: float = MAX_NORM_DEV
         Local gravity, m/s².
     max_deviation
         Largest accepted ``|‖mean‖ / g − 1|``.
+    counts
+        The readings are raw counts scaled by a stated ``lsb_per_g`` (see :func:`likely_mistake`).
     """
     norm = float(norm3(np.asarray(mean, dtype=np.float64)))
     ratio = norm / g
     if abs(ratio - 1.0) <= max_deviation:
         return None
     return (f"‖mean‖ = {norm:.4g} m/s² is {ratio:.3g} × g_local ({g:.4f} m/s²), more than "
-            f"{max_deviation:.0%} away: likely {likely_mistake(ratio)}")
+            f"{max_deviation:.0%} away: likely {likely_mistake(ratio, counts)}")
 
 
 def typical_reading(acc: np.ndarray) -> np.ndarray:
@@ -114,7 +133,7 @@ def typical_reading(acc: np.ndarray) -> np.ndarray:
 
 
 def typical_norm_problem(acc: np.ndarray, g: float, max_deviation: float = MAX_NORM_DEVIATION,
-                         ) -> str | None:
+                         counts: bool = False) -> str | None:
     """``norm_problem(typical_reading(acc), g, max_deviation)``, mostly without the median.
 
     The accepted norms are one interval (the test is monotone in the norm): when both ends
@@ -127,7 +146,7 @@ def typical_norm_problem(acc: np.ndarray, g: float, max_deviation: float = MAX_N
     acc = np.asarray(acc, dtype=np.float64)
     if acc.ndim == 2 and acc.shape[0] and _median_norm_accepted(acc, g, max_deviation):
         return None
-    return norm_problem(typical_reading(acc), g, max_deviation)
+    return norm_problem(typical_reading(acc), g, max_deviation, counts)
 
 
 def _median_norm_accepted(acc: np.ndarray, g: float, max_deviation: float) -> bool:
@@ -182,9 +201,10 @@ def rate_step(t: np.ndarray, block: int = 500, median_step: float | None = None,
     """A change of sample rate inside a recording, as (first sample of the changed block, rate
     before, rate after) in Hz, or None.
 
-    The file is cut into blocks of ``block`` samples; a block whose median step differs from
-    the whole file's median step by :data:`RATE_STEP_FACTOR` or more marks the change (gaps
-    from lost samples are single long steps and do not move a block's median).
+    The file is cut into blocks of ``block`` samples; unless every block's median step is
+    within :data:`RATE_STEP_FACTOR` of the whole file's, the first block whose median differs
+    from the first block's by that factor marks the change (gaps from lost samples are single
+    long steps and do not move a block's median).
     ``median_step`` is ``np.median(np.diff(t))`` when the caller has it
     (:attr:`~ofbe_data.io.recording.Recording.median_step_s`).
     """
@@ -200,7 +220,9 @@ def rate_step(t: np.ndarray, block: int = 500, median_step: float | None = None,
     if _medians_within(blocks, overall):
         return None
     medians = np.median(blocks, axis=1)
-    ratio = medians / overall
+    # against the file's first block: the whole file's median is the later rate when the
+    # later part is longer, and would put the change at the first block, backwards
+    ratio = medians / (medians[0] if medians[0] > 0 else overall)
     off = np.flatnonzero((ratio > RATE_STEP_FACTOR) | (ratio < 1.0 / RATE_STEP_FACTOR))
     if off.size == 0:
         return None
@@ -336,3 +358,35 @@ def mount_error_deg(dut_mean: np.ndarray, ref_mean: np.ndarray, reference_to_sen
     predicted = mul3(np.asarray(reference_to_sensor, dtype=np.float64), unit(ref_mean))
     c = float(np.clip(dot3(unit(dut_mean), unit(predicted)), -1.0, 1.0))
     return math.degrees(math.acos(c))
+
+
+_SKIP_WORDS = {
+    SKIP_FIELD_COUNT: "with the wrong number of fields",
+    SKIP_NON_NUMERIC: "not numeric",
+    SKIP_EMPTY: "empty",
+    SKIP_OUT_OF_RANGE: "out of range",
+    SKIP_NON_INCREASING_TIME: ("with a time stamp that repeats or runs backwards (duplicated lines, or rows "
+                               "not in time order: a file sorted by another column is read in time order "
+                               "with sort_by_time: true; the file itself is never changed)"),
+}
+"""How a garbled-file rejection names each kind of skipped line."""
+
+
+def skipped_lines_problem(diagnostics: ReadDiagnostics, max_fraction: float) -> str | None:
+    """Why a file skipped too many of its data lines (``garbled``), naming each kind, or None.
+
+    Parameters
+    ----------
+    diagnostics
+        The reader's account of the file.
+    max_fraction
+        Largest fraction of the data lines that may be skipped.
+    """
+    d = diagnostics
+    skipped = len(d.skipped)
+    if not (d.lines_read and skipped / d.lines_read > max_fraction):
+        return None
+    what = "; ".join(f"{n} {_SKIP_WORDS.get(kind, kind)}"
+                     for kind, n in sorted(d.skipped_by_kind.items(), key=lambda kv: (-kv[1], kv[0])))
+    share = skipped / d.lines_read
+    return f"{skipped} of {d.lines_read} data lines skipped ({share:.2%} > {max_fraction:.2%}): {what}"

@@ -54,6 +54,7 @@ from ofbe_data.labelling.checks import (
     norm_problem,
     rate_problem,
     rate_step,
+    skipped_lines_problem,
     typical_norm_problem,
 )
 from ofbe_data.labelling.convergence import PAPER_THRESHOLD, PAPER_WINDOW, convergence_index
@@ -104,7 +105,7 @@ class LabelParams:
         The paper's convergence criterion (steps, m/s²).
     fit_model
         The model of methods.md §8's ladder fitted to a multi-position session's poses:
-        ``auto`` (the richest the poses support, :func:`ofbe_data.labelling.multiposition.choose_fit`)
+        ``auto`` (the richest the poses support, :func:`ofbe_data.labelling.ladder.choose_fit`)
         or one forced: ``offset``, ``scale-offset``, ``full``, or any of them with
         ``+temperature``. (``multi_position_model`` is read as a former name of this key.)
     fit_alpha
@@ -277,20 +278,23 @@ def _own_segment(rec: Recording, taps: np.ndarray, params: LabelParams,
     return _Segment(a, b, static_checked=True), False
 
 
+def _in_counts(rec: Recording) -> bool:
+    """Whether the file holds raw counts scaled by a stated lsb_per_g (no unit to confuse)."""
+    return rec.format == "ofbe-logger" or rec.header.get("acc_unit") == "counts"
+
+
 def _file_problem(rec: Recording, params: LabelParams, g: float) -> tuple[str, str] | None:
     """What forbids any label from a whole file, as (reason, detail): too many garbled lines,
     an implausible sample rate, or readings whose typical norm is no resting norm (checked
     before the static detector, whose absolute ceiling misfires on readings in the wrong
     unit)."""
-    d = rec.diagnostics
-    skipped = len(d.skipped)
-    if d.lines_read and skipped / d.lines_read > params.max_skipped_fraction:
-        return GARBLED, (f"{skipped} of {d.lines_read} data lines skipped "
-                         f"({skipped / d.lines_read:.2%} > {params.max_skipped_fraction:.2%})")
+    garbled = skipped_lines_problem(rec.diagnostics, params.max_skipped_fraction)
+    if garbled is not None:
+        return GARBLED, garbled
     rate = rate_problem(rec.fs_hz, rec.nominal_rate_hz)
     if rate is not None and rate[1]:
         return IMPLAUSIBLE_RATE, rate[0]
-    norm = typical_norm_problem(rec.acc, g, params.max_norm_deviation)
+    norm = typical_norm_problem(rec.acc, g, params.max_norm_deviation, _in_counts(rec))
     if norm is not None:
         return IMPLAUSIBLE_NORM, norm
     return None
@@ -345,7 +349,7 @@ def _quality(rec: Recording, seg: _Segment, params: LabelParams, g: float, min_s
         return SATURATED, (f"{count} of {n} samples of the stationary segment sit at the same extreme "
                            f"{'xyz'[k]} value {value:.5g} m/s², more than {MIN_CLIP_RATIO:g} times the value "
                            "next to it: clipping at the logger's range? (record with a wider range)")
-    norm = norm_problem(mean, g, params.max_norm_deviation)
+    norm = norm_problem(mean, g, params.max_norm_deviation, _in_counts(rec))
     if norm is not None:
         return IMPLAUSIBLE_NORM, norm
     return None

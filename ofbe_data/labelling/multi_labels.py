@@ -5,7 +5,7 @@ with a threshold chosen over all the device's recordings at once
 (:func:`~ofbe_data.labelling.pose_search.find_session_poses`), each pose passes the same
 checks as any stationary segment, and the norm-constrained fit over the device's poses gives
 its zero-g offset, and as far as the poses support it (``label.fit_model``, the ladder of
-:func:`~ofbe_data.labelling.multiposition.choose_fit`) its scales, non-orthogonality and bias
+:func:`~ofbe_data.labelling.ladder.choose_fit`) its scales, non-orthogonality and bias
 temperature slope, every parameter with its standard error. Each pose becomes one label row:
 ``pose`` numbers it within its recording, ``segment_start_s``/``segment_end_s`` give its
 interval; the device's fit is repeated on each of its rows.
@@ -33,11 +33,10 @@ from ofbe_data.labelling.labels import (
     _Segment,
     _segment_mean,
 )
+from ofbe_data.labelling.ladder import ModelChoice, choose_fit
 from ofbe_data.labelling.multiposition import (
-    ModelChoice,
     PoseFit,
     base_model,
-    choose_fit,
     has_temperature,
     map_from_params,
     min_poses,

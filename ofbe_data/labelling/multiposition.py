@@ -23,19 +23,10 @@ The ladder
     α_zy, α_zx). Any of them ``+temperature`` adds a per-axis bias slope c (m/s² per °C):
     the offset at pose k is b + c·(τ_k − τ₀), τ₀ the poses' mean temperature.
 
-Six square faces (Ferraris)
-    Poses on the six faces of a cube only (however often each is repeated) leave the norms
-    blind to the non-orthogonality: opposite faces give one norm equation. What they add is
-    that opposite faces are opposite: u₋ = −u₊. Then, as imucal's Ferraris calibration does,
-    each axis' offset is the mean of its own component over its two faces,
-    b_i = (m₊ᵢ,ᵢ + m₋ᵢ,ᵢ)/2 (second-order insensitive to how the cube sits), and A's columns are
-    the half-differences, A·e_i = (m₊ᵢ − m₋ᵢ)/(2g): a full A (nine entries, the cube's frame).
-    :func:`fit_six_faces` does this where the norm fit of ``full`` is not determined, every
-    signed axis has a pose within :data:`FACE_TOLERANCE_DEG`, and the faces are square: the
-    components of the pair sums that should equal the other axes' offsets do so within
-    :data:`SQUARE_TOLERANCE_DEG` of tilt (a tilt θ between opposite faces moves b_i by about
-    g·θ²/4, 0.08 mg at 1°). The longest pose of each face is used (ties: the earliest); the
-    other poses give the residual.
+Six square faces
+    Poses on the six faces only leave the norms blind to non-orthogonality;
+    :mod:`ofbe_data.labelling.six_faces` fits ``full`` from them as imucal's Ferraris
+    calibration does, and :mod:`ofbe_data.labelling.ladder` chooses among the fits.
 
 Uncertainty
     Every fitted parameter's standard error comes from the residuals and the Jacobian at the
@@ -46,14 +37,12 @@ Uncertainty
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import least_squares
-from scipy.stats import chi2
-from scipy.stats import f as f_distribution
 
-from ofbe_data.labelling.conventions import ANGLE_NAMES, imutk_from_matrix, imutk_matrix, matrix_from_imutk
+from ofbe_data.labelling.conventions import ANGLE_NAMES, imutk_matrix, matrix_from_imutk
 
 BASE_MODELS: dict[str, int] = {"offset": 3, "scale-offset": 6, "full": 9}
 """The ladder's models and their number of unknowns, simplest first."""
@@ -70,14 +59,6 @@ REDUNDANT_POSES = 1
 MIN_TEMPERATURE_SPAN_C = 5.0
 """Recorded temperature span over the poses, °C, from which a temperature slope is tried."""
 
-FACE_TOLERANCE_DEG = 15.0
-"""A pose whose mean lies within this angle of a signed sensor axis is on that cube face."""
-
-SQUARE_TOLERANCE_DEG = 1.0
-"""Largest tilt between opposite faces (from the pair sums) for :func:`fit_six_faces`."""
-
-SIX_FACES = "six square faces"
-""":attr:`PoseFit.how` of :func:`fit_six_faces` (``norms`` for the norm-constrained fit)."""
 
 
 @dataclass(frozen=True)
@@ -121,7 +102,8 @@ class PoseFit:
     reason
         Empty when determined; otherwise why not.
     how
-        ``norms`` (imu_tk's norm-constrained fit) or :data:`SIX_FACES` (:func:`fit_six_faces`).
+        ``norms`` (imu_tk's norm-constrained fit) or ``six square faces``
+        (:func:`ofbe_data.labelling.six_faces.fit_six_faces`).
     matrix_se
         (3, 3) standard errors of ``matrix``'s entries where the fit gives them directly (the
         six-face fit's A is general, not a function of ``params``); None: derive them from
@@ -463,304 +445,6 @@ def fit_poses(means: np.ndarray, g: float, model: str = "offset", max_condition:
     slope = parts.slope.copy() if has_temperature(model) else np.full(3, np.nan)
     return PoseFit(model, parts.offset.copy(), matrix, slope, ref, x.copy(), covariance, directions,
                    residual_rms, condition, k, dof, True, "")
-
-
-FACE_ORDER = ("+x", "-x", "+y", "-y", "+z", "-z")
-"""Order of the faces in :func:`six_faces` and :func:`ferraris_solution`."""
-
-
-def six_faces(means: np.ndarray, weights: np.ndarray | None = None) -> tuple[np.ndarray | None, str]:
-    """The pose used for each cube face, or why the poses are not six faces.
-
-    Parameters
-    ----------
-    means
-        (K, 3) m/s², pose means.
-    weights
-        (K,) e.g. samples per pose; the heaviest pose on a face is used (ties: the earliest).
-        None: the earliest.
-
-    Returns
-    -------
-    (index, reason)
-        (6,) pose indices in :data:`FACE_ORDER` and ``""``, or None and a sentence.
-    """
-    m = _check_means(means)
-    w = np.ones(m.shape[0]) if weights is None else np.asarray(weights, dtype=np.float64)
-    unit = m / np.maximum(np.sqrt(np.sum(m * m, axis=1, keepdims=True)), np.finfo(float).tiny)
-    axis = np.argmax(np.abs(unit), axis=1)
-    cosine = np.abs(unit[np.arange(m.shape[0]), axis])
-    on_face = cosine >= np.cos(np.radians(FACE_TOLERANCE_DEG))
-    index = []
-    missing = []
-    for name in FACE_ORDER:
-        i, sign = "xyz".index(name[1]), 1.0 if name[0] == "+" else -1.0
-        here = np.flatnonzero(on_face & (axis == i) & (np.sign(unit[:, i]) == sign))
-        if here.size == 0:
-            missing.append(name)
-            continue
-        index.append(int(here[np.argmax(w[here])]))  # argmax: the first of equal weights
-    if missing:
-        return None, (f"no pose within {FACE_TOLERANCE_DEG:g}° of face{'s' if len(missing) > 1 else ''} "
-                      + ", ".join(missing))
-    return np.array(index), ""
-
-
-def ferraris_solution(faces: np.ndarray, g: float) -> tuple[np.ndarray, np.ndarray]:
-    """Offset and map from the six face means, as imucal's Ferraris calibration computes them.
-
-    Parameters
-    ----------
-    faces
-        (6, 3) m/s², the means of the faces in :data:`FACE_ORDER`.
-    g
-        m/s².
-
-    Returns
-    -------
-    (b, A)
-        b (3,) m/s² with b_i = (m₊ᵢ,ᵢ + m₋ᵢ,ᵢ)/2; A (3, 3) with columns (m₊ᵢ − m₋ᵢ)/(2g).
-    """
-    f = np.asarray(faces, dtype=np.float64)
-    plus, minus = f[0::2], f[1::2]
-    return 0.5 * np.diag(plus + minus), ((plus - minus) / (2.0 * g)).T
-
-
-def face_tilt_deg(faces: np.ndarray, g: float) -> float:
-    """Largest angle between a face and the opposite of its opposite face, degrees.
-
-    The pair sum m₊ᵢ + m₋ᵢ = 2b + g·A·(u₊ + u₋): its components other than i should be 2b_j,
-    as the other pairs give them; what is left is g·A·(u₊ + u₋) ≈ g·θ across gravity.
-    """
-    f = np.asarray(faces, dtype=np.float64)
-    b, _ = ferraris_solution(f, g)
-    left = 0.5 * (f[0::2] + f[1::2]) - b
-    np.fill_diagonal(left, 0.0)
-    return float(np.degrees(2.0 * np.max(np.sqrt(np.sum(left * left, axis=1))) / g))
-
-
-def _six_face_params(faces: np.ndarray, g: float) -> np.ndarray:
-    b, a = ferraris_solution(faces, g)
-    s, angles = imutk_from_matrix(a)
-    return np.concatenate([b, s, angles])
-
-
-def fit_six_faces(means: np.ndarray, g: float, weights: np.ndarray | None = None) -> PoseFit:
-    """The ``full`` model from six square cube faces (see the module notes, "Six square faces").
-
-    b and A come from :func:`ferraris_solution` on the face poses (:func:`six_faces`); ``params``
-    are imu_tk's b, s and angles of A's triangular part. Every pose's norm residual
-    |A⁻¹ (m_k − b)| − g gives σ̂ with K − 6 degrees of freedom (the six faces fix the twelve
-    unknowns; their own norm residuals are second order), and the covariances follow from
-    the face means' (σ̂² each component): cov(θ) = σ̂²·J·Jᵀ with J = ∂θ/∂(face means),
-    var(A_ij) = σ̂²/(2g²).
-
-    Returns
-    -------
-    PoseFit
-        ``how`` :data:`SIX_FACES`; ``determined`` False with the reason when the poses are not
-        six faces, the faces are not square (:data:`SQUARE_TOLERANCE_DEG`), or no pose is left
-        for the residual.
-    """
-    m = _check_means(means)
-    g = _check_g(g)
-    k = m.shape[0]
-    index, why = six_faces(m, weights)
-    if index is None:
-        return replace(_nan_fit("full", k, float("nan"), float("nan"), why), how=SIX_FACES)
-    faces = m[index]
-    tilt = face_tilt_deg(faces, g)
-    if not tilt <= SQUARE_TOLERANCE_DEG:
-        return replace(_nan_fit("full", k, float("nan"), float("nan"),
-                                f"opposite faces {tilt:.2f}° from opposite (at most "
-                                f"{SQUARE_TOLERANCE_DEG:g}°)"),
-                       how=SIX_FACES)
-    b, a = ferraris_solution(faces, g)
-    v = np.linalg.solve(a, (m - b).T).T
-    norms = np.sqrt(np.sum(v * v, axis=1))
-    r = norms - g
-    residual_rms = float(np.sqrt(np.mean(r * r)))
-    condition = max(span_condition(m), condition_number(a))
-    dof = k - 6
-    if dof < 1:
-        return replace(_nan_fit("full", k, residual_rms, condition,
-                                "7 poses needed for the six-face fit (the faces and one more), found 6"),
-                       how=SIX_FACES)
-    sigma2 = float(np.sum(r * r)) / dof
-    x = _six_face_params(faces, g)
-    step = 1e-6 * g
-    jac = np.empty((x.size, faces.size))
-    for j in range(faces.size):
-        hi, lo = faces.copy(), faces.copy()
-        hi.flat[j] += step
-        lo.flat[j] -= step
-        jac[:, j] = (_six_face_params(hi, g) - _six_face_params(lo, g)) / (2.0 * step)
-    nan3 = np.full(3, np.nan)
-    return PoseFit("full", b, a, nan3, float("nan"), x, sigma2 * jac @ jac.T, v / norms[:, None],
-                   residual_rms, condition, k, dof, True, "", how=SIX_FACES,
-                   matrix_se=np.full((3, 3), np.sqrt(sigma2 / 2.0) / g))
-
-
-def wald_test(fit: PoseFit, names: list[str]) -> tuple[float, float]:
-    """Wald statistic and p-value that the parameters ``names`` of ``fit`` are all zero:
-    W = θᵀ C⁻¹ θ, χ² with len(names) degrees of freedom (NaN when their covariance is not
-    finite)."""
-    order = parameter_names(fit.model)
-    pick = [order.index(n) for n in names]
-    theta = fit.params[pick]
-    cov = fit.covariance[np.ix_(pick, pick)]
-    if not (np.all(np.isfinite(theta)) and np.all(np.isfinite(cov))):
-        return float("nan"), float("nan")
-    stat = float(theta @ np.linalg.pinv(cov) @ theta)
-    return stat, float(chi2.sf(stat, len(pick)))
-
-
-def f_test(simple: PoseFit, rich: PoseFit) -> tuple[float, float]:
-    """F statistic and p-value of ``rich`` against the nested ``simple`` fit of the same poses.
-
-    F = ((RSS_simple − RSS_rich) / (P_rich − P_simple)) / (RSS_rich / (K − P_rich)); a small
-    p-value says the richer model's extra parameters explain more than noise would.
-    """
-    extra = rich.params.size - simple.params.size
-    if rich.dof < 1 or extra < 1:
-        return float("nan"), float("nan")
-    denominator = rich.rss / rich.dof
-    if denominator <= 0:
-        return float("inf"), 0.0
-    stat = max(simple.rss - rich.rss, 0.0) / extra / denominator
-    return float(stat), float(f_distribution.sf(stat, extra, rich.dof))
-
-
-@dataclass(frozen=True)
-class ModelChoice:
-    """The fit the ladder chose and why (:func:`choose_fit`).
-
-    Attributes
-    ----------
-    fit
-        The chosen model's fit (``fit.determined`` False when even ``offset`` is not).
-    reason
-        One line: the model, what supported it, and why each richer model was not used.
-    """
-
-    fit: PoseFit
-    reason: str
-
-
-def choose_fit(means: np.ndarray, g: float, model: str = "auto", max_condition: float = 1000.0,
-               alpha: float = 0.05, temperatures: np.ndarray | None = None,
-               weights: np.ndarray | None = None) -> ModelChoice:
-    """Fit the richest model of the ladder the poses support, or the one forced.
-
-    ``auto`` starts from ``offset`` and moves to each richer model (``scale-offset``, then
-    ``full``) that (1) has enough poses (:func:`min_poses`), (2) is well conditioned
-    (``max_condition``) and (3) improves the fit beyond noise: its F-test against the model
-    chosen so far has p < ``alpha``. When every pose has a temperature and they span ≥ 5 °C, a
-    bias temperature slope is tried first on the offset model (a slope of mg per °C would
-    otherwise pass for noise and hide the map) and kept up the ladder when significant, or
-    tried last on top of the chosen model, by the same rules. Where the norms do not determine
-    ``full`` (poses on the six faces only), :func:`fit_six_faces` is tried instead and used when
-    its non-orthogonality angles differ from zero beyond noise (:func:`wald_test`, p < ``alpha``);
-    a forced ``full`` takes it whenever it is determined.
-
-    Parameters
-    ----------
-    means
-        (K, 3) m/s², the poses' means.
-    g
-        m/s², local gravity magnitude.
-    model
-        ``auto`` or a key of :data:`MODELS` (then only that model is fitted).
-    max_condition
-        Largest condition number of a fitted model (:attr:`PoseFit.condition`).
-    alpha
-        Significance level of the F-tests.
-    temperatures
-        (K,) °C per pose, or None.
-    weights
-        (K,) samples per pose (the six-face fit uses each face's longest pose), or None.
-
-    Returns
-    -------
-    ModelChoice
-    """
-    m = _check_means(means)
-    if model != "auto":
-        fit = fit_poses(m, g, model, max_condition, temperatures)
-        why = "forced by label.fit_model" if fit.determined else fit.reason
-        if not fit.determined and model == "full":
-            faces = fit_six_faces(m, g, weights)
-            if faces.determined:
-                words = _six_face_words(m, g, weights)
-                return ModelChoice(faces, f"full: forced by label.fit_model; {words} (the norms alone: "
-                                          f"{fit.reason})")
-            why += f"; six-face fit: {faces.reason}"
-        return ModelChoice(fit, f"{model}: {why}")
-    chosen = fit_poses(m, g, "offset", max_condition)
-    notes = [f"{m.shape[0]} poses"]
-    if not chosen.determined:
-        return ModelChoice(chosen, f"offset: {chosen.reason}")
-    temps = None if temperatures is None else np.asarray(temperatures, dtype=np.float64)
-    span = float(np.ptp(temps)) if temps is not None and temps.shape == (m.shape[0],) and np.all(
-        np.isfinite(temps)) else float("nan")
-    suffix = ""
-    if span >= MIN_TEMPERATURE_SPAN_C:
-        # a slope of a few mg/°C over the span would otherwise pass for noise and hide the map
-        verdict, chosen = _try_richer(m, g, chosen, "offset" + TEMPERATURE, max_condition, alpha, temps)
-        notes.append(f"{verdict} (temperature span {span:.1f} °C)")
-        suffix = TEMPERATURE if has_temperature(chosen.model) else ""
-    for candidate in ("scale-offset", "full"):
-        verdict, richer = _try_richer(m, g, chosen, candidate + suffix, max_condition, alpha,
-                                      temps if suffix else None)
-        if richer is chosen and candidate + suffix == "full" and "not fitted" in verdict:
-            verdict, richer = _try_six_faces(m, g, chosen, alpha, weights, verdict)
-        chosen = richer
-        notes.append(verdict)
-    if span >= MIN_TEMPERATURE_SPAN_C and not suffix:
-        verdict, chosen = _try_richer(m, g, chosen, chosen.model + TEMPERATURE, max_condition, alpha, temps)
-        notes.append(verdict)
-    elif np.isfinite(span) and span < MIN_TEMPERATURE_SPAN_C:
-        notes.append(f"no temperature slope: the poses span {span:.1f} °C, {MIN_TEMPERATURE_SPAN_C:g} needed")
-    return ModelChoice(chosen, f"{chosen.model}: " + "; ".join(notes))
-
-
-def _six_face_words(means: np.ndarray, g: float, weights: np.ndarray | None) -> str:
-    index, _ = six_faces(means, weights)
-    assert index is not None
-    tilt = face_tilt_deg(means[index], g)
-    return (f"from six square faces (each offset from its axis' two faces, as Ferraris; faces {tilt:.2f}° "
-            f"from opposite)")
-
-
-def _try_six_faces(means: np.ndarray, g: float, chosen: PoseFit, alpha: float, weights: np.ndarray | None,
-                   verdict: str) -> tuple[str, PoseFit]:
-    """Whether the six-face ``full`` fit replaces ``chosen`` where the norms cannot fit it."""
-    faces = fit_six_faces(means, g, weights)
-    if not faces.determined:
-        return f"{verdict}; six-face fit not used: {faces.reason}", chosen
-    stat, p_value = wald_test(faces, [f"imutk_mis_{n}" for n in ANGLE_NAMES])
-    if not p_value < alpha:
-        return (f"{verdict}; six-face fit not used: its angles are zero within noise "
-                f"(W = {stat:.3g}, p = {p_value:.2g} ≥ {alpha:g})"), chosen
-    return (f"full over {chosen.model} {_six_face_words(means, g, weights)}: non-orthogonality "
-            f"W = {stat:.3g}, p = {p_value:.2g} < {alpha:g} ({verdict})"), faces
-
-
-def _try_richer(means: np.ndarray, g: float, chosen: PoseFit, candidate: str, max_condition: float,
-                alpha: float, temperatures: np.ndarray | None) -> tuple[str, PoseFit]:
-    """Whether ``candidate`` replaces ``chosen``: (one-line verdict, the fit kept)."""
-    needed = min_poses(candidate)
-    if means.shape[0] < needed:
-        return f"{candidate} not fitted: {needed} poses needed", chosen
-    rich = fit_poses(means, g, candidate, max_condition, temperatures)
-    if not rich.determined:
-        return f"{candidate} not fitted: {rich.reason}", chosen
-    stat, p_value = f_test(chosen, rich)
-    if not p_value < alpha:
-        return (f"{candidate} not used: no improvement beyond noise over {chosen.model} "
-                f"(F = {stat:.3g}, p = {p_value:.2g} ≥ {alpha:g})"), chosen
-    return (f"{candidate} over {chosen.model}: F = {stat:.3g}, p = {p_value:.2g} < {alpha:g}, "
-            f"condition {rich.condition:.3g}"), rich
 
 
 def apparent_biases(means: np.ndarray, fit: PoseFit, g: float) -> np.ndarray:

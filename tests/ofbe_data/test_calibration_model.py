@@ -29,14 +29,9 @@ from ofbe_data.labelling.conventions import (
     triangular_part,
 )
 from ofbe_data.labelling.labels import LabelParams
-from ofbe_data.labelling.multiposition import (
-    SIX_FACES,
-    choose_fit,
-    ferraris_solution,
-    fit_poses,
-    fit_six_faces,
-    min_poses,
-)
+from ofbe_data.labelling.ladder import choose_fit
+from ofbe_data.labelling.multiposition import fit_poses, min_poses
+from ofbe_data.labelling.six_faces import SIX_FACES, ferraris_solution, fit_six_faces
 from ofbe_data.labelling.store import read_labels
 from ofbe_data.simulator import load_config, simulate_campaign
 from tests.conftest import imucal_still_norms

@@ -489,6 +489,66 @@ def test_a_mount_that_contradicts_the_reference_is_a_mount_mismatch(tmp_path: Pa
     assert all(r["device"] == "sparkfun-2" for r in labels.rows) and len(labels.rows) == 2
 
 
+def test_a_rate_step_is_reported_in_file_order() -> None:
+    """Issue 22: 100 Hz for 4000 samples then 50 Hz for 4500 was reported as "from 50 Hz to
+    100 Hz around line 2" (the whole file's median is the later rate)."""
+    import numpy as np
+
+    from ofbe_data.labelling.checks import rate_step
+
+    t = np.concatenate([np.arange(4000) * 0.01, 40.0 + np.arange(1, 4501) * 0.02])
+    start, before, after = rate_step(t)
+    assert 3500 <= start <= 4000 and before == pytest.approx(100.0) and after == pytest.approx(50.0)
+
+
+def test_a_logger_header_with_lsb_per_g_ten_times_off_names_lsb_per_g(tmp_path: Path) -> None:
+    """Issue 22: lsb_per_g 25.6 for 256 read as 'm/s² declared as g' (9.81 is within 10 % of 10)."""
+    session = _copy_session(tmp_path / "s")
+    for f in session.glob("rec-*/sparkfun-*.csv"):
+        f.write_text(f.read_text().replace("lsb_per_g=256", "lsb_per_g=25.6"))
+    labels = _label(session, tmp_path)
+    assert labels.rows == [] and {r.reason for r in labels.rejections} == {"implausible-norm"}
+    detail = labels.rejections[0].detail
+    # the board's own 2 % of bias and scale on z make it 10.2
+    assert detail.endswith("likely counts scaled with the wrong lsb_per_g (the readings come out 10.2 times "
+                           "too large: lsb_per_g looks 10.2 times too small; check the range and resolution "
+                           "of the logger)"), detail
+
+
+def test_rows_sorted_by_another_column_are_named_and_sort_by_time_reads_them(tmp_path: Path) -> None:
+    """Issue 22: a file whose rows are grouped by part (time runs backwards between parts) was
+    rejected as garbled without the word time; it is named, and ``sort_by_time: true`` reads it
+    in time order (raw/ untouched), giving the same label as the file in time order."""
+    import numpy as np
+
+    from ofbe_data.labelling.labels import LabelParams, label_session
+
+    rng = np.random.default_rng(2)
+    n = 3000
+    acc = np.array([0.03, -0.02, 9.83]) + 0.01 * rng.standard_normal((n, 3))
+    lines = [f"{i / 100:.2f},{'b' if i < n // 2 else 'a'},{a[0]:.5f},{a[1]:.5f},{a[2]:.5f}"
+             for i, a in enumerate(acc)]
+    by_part = sorted(lines, key=lambda ln: ln.split(",")[1])  # part a (the later half) first
+    folder = tmp_path / "camp" / "s1"
+    folder.mkdir(parents=True)
+    (folder / "r1.csv").write_text("t,part,ax,ay,az\n" + "\n".join(by_part) + "\n")
+    manifest = ("format: ofbe-session/1\ncampaign: camp\nsession: s1\nkind: gravity-aligned\n"
+                "site: {gravity_mps2: 9.80665}\npower_cycle: 1\ndevices:\n  dut:\n    model: X\n"
+                "    role: dut\n    format: csv\n    columns: {t: t, ax: ax, ay: ay, az: az}\n{extra}"
+                "recordings:\n  - id: r1\n    files: {dut: r1.csv}\n")
+    (folder / "session.yaml").write_text(manifest.replace("{extra}", ""))
+    before = (folder / "r1.csv").read_bytes()
+    labels = label_session(folder, LabelParams(min_samples=1000))
+    (rej,) = labels.rejections
+    assert rej.reason == "garbled" and "1500 with a time stamp that repeats or runs backwards" in rej.detail
+    assert "sort_by_time: true" in rej.detail
+    (folder / "session.yaml").write_text(manifest.replace("{extra}", "    sort_by_time: true\n"))
+    labels = label_session(folder, LabelParams(min_samples=1000))
+    assert labels.rejections == [] and (folder / "r1.csv").read_bytes() == before
+    (row,) = labels.rows
+    np.testing.assert_allclose([row[f"bias_{a}"] for a in "xyz"], [0.03, -0.02, 9.83 - 9.80665], atol=1e-3)
+
+
 def test_likely_mistakes_are_named() -> None:
     from ofbe_data.labelling.checks import likely_mistake
 

@@ -354,7 +354,8 @@ def test_many_lines_with_wrong_field_count_reject_the_recording_as_garbled(tmp_p
     assert n == 5249
     labels, rejected = _label_ok(capsys, tmp_path, session)
     assert rejected == [_rejection("rec-01", "sparkfun-1", "garbled",
-                                   "263 of 5249 data lines skipped (5.01% > 1.00%)")]
+                                   "263 of 5249 data lines skipped (5.01% > 1.00%): 263 with the wrong "
+                                   "number of fields")]
     assert _ids(labels) == [("rec-01", "sparkfun-2")]
 
 
@@ -397,7 +398,7 @@ def test_many_nan_values_reject_the_recording_as_garbled(tmp_path, capsys):
     _rewrite_logger(session / "rec-01/sparkfun-1.csv", corrupt=corrupt)
     labels, rejected = _label_ok(capsys, tmp_path, session)
     assert rejected == [_rejection("rec-01", "sparkfun-1", "garbled",
-                                   "105 of 5249 data lines skipped (2.00% > 1.00%)")]
+                                   "105 of 5249 data lines skipped (2.00% > 1.00%): 105 not numeric")]
     assert _ids(labels) == [("rec-01", "sparkfun-2")]
 
 
@@ -499,7 +500,10 @@ def test_a_long_block_of_backward_time_stamps_rejects_the_recording(tmp_path, ca
     assert rec.diagnostics.wraps == 0
     labels, rejected = _label_ok(capsys, tmp_path, session)
     assert rejected == [_rejection("rec-01", "sparkfun-1", "garbled",
-                                   "200 of 5249 data lines skipped (3.81% > 1.00%)")]
+                                   "200 of 5249 data lines skipped (3.81% > 1.00%): 200 with a time "
+                                   "stamp that repeats or runs backwards (duplicated lines, or rows not in "
+                                   "time order: a file sorted by another column is read in time order with "
+                                   "sort_by_time: true; the file itself is never changed)")]
     assert _ids(labels) == [("rec-01", "sparkfun-2")]
 
 
@@ -512,7 +516,10 @@ def test_a_long_block_of_backward_time_stamps_in_the_reference(tmp_path, capsys)
     assert np.all(np.diff(rec.t) > 0)
     assert [s.line for s in rec.diagnostics.skipped] == list(range(1627, 1727))
     labels, rejected = _label_ok(capsys, tmp_path, session)
-    detail = "rec-01/memsense.csv: 100 of 3242 data lines skipped (3.08% > 1.00%)"
+    detail = ("rec-01/memsense.csv: 100 of 3242 data lines skipped (3.08% > 1.00%): 100 with a time stamp "
+              "that repeats or runs backwards (duplicated lines, or rows not in time order: a file sorted "
+              "by another column is read in time order with sort_by_time: true; the file itself is never "
+              "changed)")
     assert rejected == [_rejection("rec-01", d, "reference-garbled", detail)
                         for d in ("sparkfun-1", "sparkfun-2")]
 
@@ -642,7 +649,8 @@ def test_garbled_reference_rejects_every_dut_of_that_recording(tmp_path, capsys)
     session = _copy(tmp_path, ROT)
     _edit_mscip(session / "rec-01/memsense.csv", lambda n, f: f[:5] if 1327 <= n < 1427 else f)
     labels, rejected = _label_ok(capsys, tmp_path, session)
-    detail = "rec-01/memsense.csv: 100 of 3242 data lines skipped (3.08% > 1.00%)"
+    detail = ("rec-01/memsense.csv: 100 of 3242 data lines skipped (3.08% > 1.00%): 100 with the wrong "
+              "number of fields")
     assert rejected == [_rejection("rec-01", d, "reference-garbled", detail)
                         for d in ("sparkfun-1", "sparkfun-2")]
     assert _ids(labels) == [("rec-02", "sparkfun-1"), ("rec-02", "sparkfun-2")]

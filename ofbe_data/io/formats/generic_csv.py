@@ -293,6 +293,11 @@ def read_generic_csv(path: str | Path, mapping: CsvMapping, device: str | None =
         t_raw = body.values[keys["t"]] / rate
     else:
         t_raw = body.values[keys["t"]] * _TIME_SCALE[mapping.time_unit]
+    if mapping.sort_by_time:  # stable: rows of equal time keep their order (then the first is kept)
+        order = np.argsort(t_raw, kind="stable")
+        t_raw = t_raw[order]
+        body.values = {name: col[order] for name, col in body.values.items()}
+        body.lines = body.lines[order]
     body.values["__t"] = t_raw
     d = np.diff(t_raw)
     typical = float(np.median(d[d > 0])) if np.any(d > 0) else 0.0
@@ -318,6 +323,7 @@ def read_generic_csv(path: str | Path, mapping: CsvMapping, device: str | None =
     diag = ReadDiagnostics(path, preamble, body.lines_read, int(t.shape[0]), tuple(body.skipped), gaps,
                            saturated_samples=int(saturated.sum()))
     header = {"device": device} if device else {}
+    header["acc_unit"] = mapping.acc_unit
     header.update(spacing_stats(t))
     start = None
     if "t" in keys and mapping.time_unit != "samples" and EPOCH_RANGE_S[0] <= t[0] <= EPOCH_RANGE_S[1]:

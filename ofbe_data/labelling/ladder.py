@@ -1,0 +1,191 @@
+"""The model ladder's choice: the richest model the poses support (methods.md §8).
+
+:func:`choose_fit` fits ``offset``, then each richer model of
+:mod:`ofbe_data.labelling.multiposition` that enough well-spread poses determine and that
+improves the fit beyond noise (:func:`f_test`); where the norms cannot fit ``full`` from poses
+on the six faces only, the six-face fit of :mod:`ofbe_data.labelling.six_faces` is used when
+its non-orthogonality is significant (:func:`wald_test`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.stats import chi2
+from scipy.stats import f as f_distribution
+
+from ofbe_data.labelling.conventions import ANGLE_NAMES
+from ofbe_data.labelling.multiposition import (
+    MIN_TEMPERATURE_SPAN_C,
+    TEMPERATURE,
+    PoseFit,
+    _check_means,
+    fit_poses,
+    has_temperature,
+    min_poses,
+    parameter_names,
+)
+from ofbe_data.labelling.six_faces import face_tilt_deg, fit_six_faces, six_faces
+
+
+def wald_test(fit: PoseFit, names: list[str]) -> tuple[float, float]:
+    """Wald statistic and p-value that the parameters ``names`` of ``fit`` are all zero:
+    W = θᵀ C⁻¹ θ, χ² with len(names) degrees of freedom (NaN when their covariance is not
+    finite)."""
+    order = parameter_names(fit.model)
+    pick = [order.index(n) for n in names]
+    theta = fit.params[pick]
+    cov = fit.covariance[np.ix_(pick, pick)]
+    if not (np.all(np.isfinite(theta)) and np.all(np.isfinite(cov))):
+        return float("nan"), float("nan")
+    stat = float(theta @ np.linalg.pinv(cov) @ theta)
+    return stat, float(chi2.sf(stat, len(pick)))
+
+
+def f_test(simple: PoseFit, rich: PoseFit) -> tuple[float, float]:
+    """F statistic and p-value of ``rich`` against the nested ``simple`` fit of the same poses.
+
+    F = ((RSS_simple − RSS_rich) / (P_rich − P_simple)) / (RSS_rich / (K − P_rich)); a small
+    p-value says the richer model's extra parameters explain more than noise would.
+    """
+    extra = rich.params.size - simple.params.size
+    if rich.dof < 1 or extra < 1:
+        return float("nan"), float("nan")
+    denominator = rich.rss / rich.dof
+    if denominator <= 0:
+        return float("inf"), 0.0
+    stat = max(simple.rss - rich.rss, 0.0) / extra / denominator
+    return float(stat), float(f_distribution.sf(stat, extra, rich.dof))
+
+
+@dataclass(frozen=True)
+class ModelChoice:
+    """The fit the ladder chose and why (:func:`choose_fit`).
+
+    Attributes
+    ----------
+    fit
+        The chosen model's fit (``fit.determined`` False when even ``offset`` is not).
+    reason
+        One line: the model, what supported it, and why each richer model was not used.
+    """
+
+    fit: PoseFit
+    reason: str
+
+
+def choose_fit(means: np.ndarray, g: float, model: str = "auto", max_condition: float = 1000.0,
+               alpha: float = 0.05, temperatures: np.ndarray | None = None,
+               weights: np.ndarray | None = None) -> ModelChoice:
+    """Fit the richest model of the ladder the poses support, or the one forced.
+
+    ``auto`` starts from ``offset`` and moves to each richer model (``scale-offset``, then
+    ``full``) that (1) has enough poses (:func:`min_poses`), (2) is well conditioned
+    (``max_condition``) and (3) improves the fit beyond noise: its F-test against the model
+    chosen so far has p < ``alpha``. When every pose has a temperature and they span ≥ 5 °C, a
+    bias temperature slope is tried first on the offset model (a slope of mg per °C would
+    otherwise pass for noise and hide the map) and kept up the ladder when significant, or
+    tried last on top of the chosen model, by the same rules. Where the norms do not determine
+    ``full`` (poses on the six faces only), :func:`fit_six_faces` is tried instead and used when
+    its non-orthogonality angles differ from zero beyond noise (:func:`wald_test`, p < ``alpha``);
+    a forced ``full`` takes it whenever it is determined.
+
+    Parameters
+    ----------
+    means
+        (K, 3) m/s², the poses' means.
+    g
+        m/s², local gravity magnitude.
+    model
+        ``auto`` or a key of :data:`MODELS` (then only that model is fitted).
+    max_condition
+        Largest condition number of a fitted model (:attr:`PoseFit.condition`).
+    alpha
+        Significance level of the F-tests.
+    temperatures
+        (K,) °C per pose, or None.
+    weights
+        (K,) samples per pose (the six-face fit uses each face's longest pose), or None.
+
+    Returns
+    -------
+    ModelChoice
+    """
+    m = _check_means(means)
+    if model != "auto":
+        fit = fit_poses(m, g, model, max_condition, temperatures)
+        why = "forced by label.fit_model" if fit.determined else fit.reason
+        if not fit.determined and model == "full":
+            faces = fit_six_faces(m, g, weights)
+            if faces.determined:
+                words = _six_face_words(m, g, weights)
+                return ModelChoice(faces, f"full: forced by label.fit_model; {words} (the norms alone: "
+                                          f"{fit.reason})")
+            why += f"; six-face fit: {faces.reason}"
+        return ModelChoice(fit, f"{model}: {why}")
+    chosen = fit_poses(m, g, "offset", max_condition)
+    notes = [f"{m.shape[0]} poses"]
+    if not chosen.determined:
+        return ModelChoice(chosen, f"offset: {chosen.reason}")
+    temps = None if temperatures is None else np.asarray(temperatures, dtype=np.float64)
+    span = float(np.ptp(temps)) if temps is not None and temps.shape == (m.shape[0],) and np.all(
+        np.isfinite(temps)) else float("nan")
+    suffix = ""
+    if span >= MIN_TEMPERATURE_SPAN_C:
+        # a slope of a few mg/°C over the span would otherwise pass for noise and hide the map
+        verdict, chosen = _try_richer(m, g, chosen, "offset" + TEMPERATURE, max_condition, alpha, temps)
+        notes.append(f"{verdict} (temperature span {span:.1f} °C)")
+        suffix = TEMPERATURE if has_temperature(chosen.model) else ""
+    for candidate in ("scale-offset", "full"):
+        verdict, richer = _try_richer(m, g, chosen, candidate + suffix, max_condition, alpha,
+                                      temps if suffix else None)
+        if richer is chosen and candidate + suffix == "full" and "not fitted" in verdict:
+            verdict, richer = _try_six_faces(m, g, chosen, alpha, weights, verdict)
+        chosen = richer
+        notes.append(verdict)
+    if span >= MIN_TEMPERATURE_SPAN_C and not suffix:
+        verdict, chosen = _try_richer(m, g, chosen, chosen.model + TEMPERATURE, max_condition, alpha, temps)
+        notes.append(verdict)
+    elif np.isfinite(span) and span < MIN_TEMPERATURE_SPAN_C:
+        notes.append(f"no temperature slope: the poses span {span:.1f} °C, {MIN_TEMPERATURE_SPAN_C:g} needed")
+    return ModelChoice(chosen, f"{chosen.model}: " + "; ".join(notes))
+
+
+def _six_face_words(means: np.ndarray, g: float, weights: np.ndarray | None) -> str:
+    index, _ = six_faces(means, weights)
+    assert index is not None
+    tilt = face_tilt_deg(means[index], g)
+    return (f"from six square faces (each offset from its axis' two faces, as Ferraris; faces {tilt:.2f}° "
+            f"from opposite)")
+
+
+def _try_six_faces(means: np.ndarray, g: float, chosen: PoseFit, alpha: float, weights: np.ndarray | None,
+                   verdict: str) -> tuple[str, PoseFit]:
+    """Whether the six-face ``full`` fit replaces ``chosen`` where the norms cannot fit it."""
+    faces = fit_six_faces(means, g, weights)
+    if not faces.determined:
+        return f"{verdict}; six-face fit not used: {faces.reason}", chosen
+    stat, p_value = wald_test(faces, [f"imutk_mis_{n}" for n in ANGLE_NAMES])
+    if not p_value < alpha:
+        return (f"{verdict}; six-face fit not used: its angles are zero within noise "
+                f"(W = {stat:.3g}, p = {p_value:.2g} ≥ {alpha:g})"), chosen
+    return (f"full over {chosen.model} {_six_face_words(means, g, weights)}: non-orthogonality "
+            f"W = {stat:.3g}, p = {p_value:.2g} < {alpha:g} ({verdict})"), faces
+
+
+def _try_richer(means: np.ndarray, g: float, chosen: PoseFit, candidate: str, max_condition: float,
+                alpha: float, temperatures: np.ndarray | None) -> tuple[str, PoseFit]:
+    """Whether ``candidate`` replaces ``chosen``: (one-line verdict, the fit kept)."""
+    needed = min_poses(candidate)
+    if means.shape[0] < needed:
+        return f"{candidate} not fitted: {needed} poses needed", chosen
+    rich = fit_poses(means, g, candidate, max_condition, temperatures)
+    if not rich.determined:
+        return f"{candidate} not fitted: {rich.reason}", chosen
+    stat, p_value = f_test(chosen, rich)
+    if not p_value < alpha:
+        return (f"{candidate} not used: no improvement beyond noise over {chosen.model} "
+                f"(F = {stat:.3g}, p = {p_value:.2g} ≥ {alpha:g})"), chosen
+    return (f"{candidate} over {chosen.model}: F = {stat:.3g}, p = {p_value:.2g} < {alpha:g}, "
+            f"condition {rich.condition:.3g}"), rich
