@@ -202,15 +202,25 @@ def _json(args: argparse.Namespace) -> list[ExportFile]:
 
 
 def _training_windows(args: argparse.Namespace) -> tuple[np.ndarray, str]:
-    """The windows a model was trained on, (N, T, 3) m/s², and a description of them."""
+    """The windows a model was trained on, (N, T, 3) m/s², and a description of them; without
+    ``--dataset``, the dataset the model card beside SOURCE names (:func:`card_dataset`)."""
+    what = ""
     if args.dataset is None:
-        raise ExportUsageError(f"{args.format} needs --dataset DIR: the dataset the model was trained on "
-                               "(its training windows are the int8 representative set)")
+        from ofbe_model.deploy.final import ModelCardError, card_dataset
+
+        try:
+            args.dataset, warning = card_dataset(args.source)
+        except ModelCardError as exc:
+            raise ExportUsageError(f"{args.format} needs --dataset DIR, the dataset the model was trained on "
+                                   f"(its training windows are the int8 representative set): {exc}") from None
+        if warning:
+            print(f"{PROG}: warning: {warning}", file=sys.stderr)
+        what = " (the model card's training data)"
     from ofbe_data import load_dataset
 
     data = load_dataset(args.dataset)
     keep = np.ones(len(data.meta), dtype=bool)
-    what = f"{args.dataset}"
+    what = f"{args.dataset}{what}"
     if args.device is not None:
         keep &= (data.meta["device"] == args.device).to_numpy()
         what += f", device {args.device}"
@@ -258,7 +268,7 @@ FORMATS: dict[str, Format] = {
     "ggir": Format(_ggir, "GGIR backup.cal.coef CSV: scale.*, offset.* (g, GGIR's sign)"),
     "json": Format(_json, "ofbe-calibration/1 JSON: bias, std, kind, method, source, time, version"),
     "tflite": Format(_tflite, "OFBENet (SOURCE: a .keras) as float32 and int8 TensorFlow Lite with a JSON "
-                              "sidecar of the scaling; needs --dataset"),
+                              "sidecar of the scaling; --dataset (default: the model card's)"),
     "c-header": Format(_c_header, "the gravity-prior (SOURCE: its .json) as a self-contained C header with a "
                                   "reference C function"),
 }
@@ -395,7 +405,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--gyro-random-walk", type=_positive, metavar="RAD_S2_SQRT_HZ",
                    help="kalibr: gyroscope bias random walk, rad/s^2/sqrt(Hz); default: measured from the "
                         "gyroscope columns (or their flagged upper bound)")
-    p.add_argument("--dataset", type=Path, help="tflite: the dataset the model was trained on")
+    p.add_argument("--dataset", type=Path, help="tflite: the dataset the model was trained on (default: the "
+                                                "one model_card.json beside SOURCE names)")
     p.add_argument("--protocol", help="tflite: with --fold, only that fold's training windows")
     p.add_argument("--fold", type=int, help="tflite: the fold of --protocol the model was trained for")
     p.add_argument("--device", help="tflite: only this device's windows (a per-device model)")

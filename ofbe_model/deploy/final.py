@@ -13,14 +13,19 @@ the two estimators a user deploys on every window of a dataset:
     ``gravity-prior-direction``), saved as JSON (no pickle).
 ``<out>/<dataset>/MODEL_CARD.md`` and ``model_card.json``
     What each model is for and what it cannot do, the training data (with the SHA-256 of the
-    dataset's SHA256SUMS, which pins every file of it), and the protocol-level RMSE that the
-    benchmark measured for the same method on the same data.
+    dataset's SHA256SUMS, which pins every file of it, and where it lies: ``path`` as given,
+    ``relative_path`` from the card's folder), and the protocol-level RMSE that the benchmark
+    measured for the same method on the same data.
+
+:func:`card_dataset` finds a model's training data again from its card (``ofbe-export tflite``
+without ``--dataset``).
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,6 +33,7 @@ from typing import Any
 
 from ofbe_data import __version__
 from ofbe_data.core.atomic import write_bytes_atomic
+from ofbe_data.core.errors import OfbeError
 from ofbe_data.core.parallel import map_progress
 from ofbe_data.dataset.reader import load_dataset
 from ofbe_model.estimators.priors import GravityPrior
@@ -69,6 +75,95 @@ def _fit_ofbenet(task: _FinalTask) -> dict[str, Any]:
     est.save(task.path)
     return {"epochs_run": len(est.history_["loss"]), "best_epoch": est.best_epoch_,
             "n_train": est.n_train_, "n_val": est.n_val_}
+
+
+class ModelCardError(OfbeError):
+    """A model whose card does not lead to its training data (no card, no path, or no such folder)."""
+
+
+def _relative_path(dataset: Path, folder: Path) -> str | None:
+    """``dataset`` relative to ``folder``, POSIX separators (None: no relative path, another drive)."""
+    try:
+        return Path(os.path.relpath(os.path.abspath(dataset), os.path.abspath(folder))).as_posix()
+    except ValueError:
+        return None
+
+
+def card_dataset(model: str | Path, cwd: str | Path | None = None) -> tuple[Path, str | None]:
+    """The dataset a deployed model was trained on, from the ``model_card.json`` beside it.
+
+    The card's ``training_data`` is looked up, first found wins: ``relative_path`` from the
+    card's folder; ``path`` as written when absolute, else relative to ``cwd`` (the working
+    directory) and to the repository root above the card (the nearest folder with
+    ``dvc.yaml``: the pipeline writes paths relative to it).
+
+    Parameters
+    ----------
+    model
+        The model file (``final.keras``) the card describes.
+    cwd
+        Working directory (default: the process's).
+
+    Returns
+    -------
+    path
+        The dataset folder.
+    warning
+        A one-line warning when its SHA256SUMS is not the one the card recorded (the dataset
+        was rebuilt since the model was trained), else None.
+
+    Raises
+    ------
+    ModelCardError
+        No card beside the model, a card that is not JSON or describes another file, a card
+        without a path (cards written before ``relative_path`` keep ``path``), or a dataset
+        found nowhere (the message names the card and where it looked).
+    """
+    model = Path(model)
+    card_file = model.parent / CARD_JSON
+    if not card_file.is_file():
+        raise ModelCardError(f"{model}: expected a {CARD_JSON} beside it naming the training data, "
+                             "found none")
+    try:
+        card = json.loads(card_file.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ModelCardError(f"{card_file}: expected a JSON model card ({CARD_FORMAT}), found an unreadable "
+                             f"file ({exc})") from None
+    card = card if isinstance(card, dict) else {}
+    files = card.get("files") if isinstance(card.get("files"), dict) else {}
+    data = card.get("training_data")
+    described = files.get("ofbenet")
+    if described != model.name:
+        raise ModelCardError(f"{card_file}: expected a card describing {model.name}, found one describing "
+                             f"{described!r}")
+    data = data if isinstance(data, dict) else {}
+    given = [v for v in (data.get("relative_path"), data.get("path")) if isinstance(v, str) and v]
+    if not given:
+        raise ModelCardError(f"{card_file}: training_data: expected the dataset's path or relative_path, "
+                             "found neither")
+    here = Path.cwd() if cwd is None else Path(cwd)
+    root = next((p for p in card_file.resolve().parents if (p / "dvc.yaml").is_file()), None)
+    candidates: list[Path] = []
+    if isinstance(data.get("relative_path"), str) and data["relative_path"]:
+        candidates.append(Path(os.path.normpath(card_file.parent / data["relative_path"])))
+    if isinstance(data.get("path"), str) and data["path"]:
+        path = Path(data["path"])
+        candidates += [path] if path.is_absolute() else [here / path] + ([root / path] if root else [])
+    found = next((c for c in candidates if c.is_dir()), None)
+    if found is None:
+        looked = ", ".join(dict.fromkeys(str(c) for c in candidates))
+        raise ModelCardError(f"{card_file}: expected the training data {given[-1]!r} on disk, found no such "
+                             f"folder (looked in {looked})")
+    warning = None
+    recorded = data.get("sha256sums_sha256")
+    try:
+        current = dataset_hash(found)
+    except OSError:
+        current = None
+    if recorded and current != recorded:
+        warning = (f"{found}: its SHA256SUMS is not the one {card_file} recorded (the dataset changed since "
+                   "the model was trained)")
+    return found, warning
 
 
 def dataset_hash(folder: str | Path) -> str:
@@ -208,7 +303,8 @@ def _write_final(dataset: Path, folder: Path, params: OFBENetParams, fit: Mappin
                          "one stationary window of raw specific force, without levelling or rotating it, for "
                          "devices like those of the training data; the gravity-prior also gives a standard "
                          "deviation per axis."),
-        "training_data": {"path": str(dataset), "sha256sums_sha256": dataset_hash(dataset),
+        "training_data": {"path": str(dataset), "relative_path": _relative_path(dataset, folder),
+                          "sha256sums_sha256": dataset_hash(dataset),
                           "n_windows": int(ds.X.shape[0]), "window_length": int(ds.X.shape[1]),
                           "devices": sorted({str(d) for d in ds.meta["device"]}),
                           "fs_hz": [round(float(fs.min()), 6), round(float(fs.max()), 6)],

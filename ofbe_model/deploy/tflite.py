@@ -7,7 +7,7 @@
     m/s² (sensor frame, row-major samples × axes) in, the (1, 3) bias in m/s² out.
 ``<name>.int8.tflite``
     Full-integer quantisation (every operator int8, int8 input and output tensors, weights
-    per channel), calibrated on a representative set of windows. The two scaling layers are
+    per channel), calibrated on a representative set of windows. The scaling layers are
     *outside* this graph: the firmware standardises each sample per axis (float, or folded
     into the quantisation) and de-standardises the three outputs, with the constants of the
     sidecar. Keeping them outside lets the int8 input tensor resolve the standardised signal
@@ -26,8 +26,8 @@ function would keep Keras 3's resource variables as ``READ_VARIABLE`` ops that i
 calibration cannot run). The rebuilt chains are checked against the original model's output
 before anything is written. BatchNormalization folds into the convolutions and Dropout
 vanishes; the graph holds RESHAPE, CONV_2D, LEAKY_RELU, AVERAGE_POOL_2D, MEAN and
-FULLY_CONNECTED (plus SUB and MUL for the float model's input scaling), all TFLite Micro
-builtins.
+FULLY_CONNECTED (plus ADD and MUL for the float model's input scaling; its output scaling
+folds into the last FULLY_CONNECTED), all TFLite Micro builtins.
 
 Determinism: with one TensorFlow version, the same model and the same representative set
 give byte-identical files (the tests convert twice); the converter embeds no time stamp.
@@ -58,7 +58,7 @@ from ofbe_data import __version__
 from ofbe_data.core.atomic import write_bytes_atomic
 from ofbe_data.core.cli import VERBOSE_ENV, import_tensorflow
 from ofbe_model.estimators.base import EstimatorError
-from ofbe_model.ofbenet.layers import Destandardise, Standardise
+from ofbe_model.ofbenet.layers import model_scalings
 from ofbe_model.ofbenet.network import OFBENet
 
 tf = import_tensorflow()  # before keras: TensorFlow's start-up lines stay off the terminal
@@ -164,18 +164,16 @@ def _chains(model: keras.Model, where: str) -> tuple[keras.Model, keras.Model, l
     core
         (1, T, 3) standardised → (1, 3) standardised bias.
     constants
-        float32 x_mean, x_std, y_mean, y_std, each (3,).
+        float32 x_mean, x_scale (1/std), y_mean, y_std, each (3,): the model computes
+        ``(x − x_mean) · x_scale`` first and ``z · y_std + y_mean`` last.
 
     Raises
     ------
     EstimatorError
-        The model does not start with :class:`Standardise` and end with :class:`Destandardise`.
+        The model does not start with the input scaling layers and end with the target
+        scaling (:func:`ofbe_model.ofbenet.layers.model_scalings`).
     """
-    layers = model.layers
-    if len(layers) < 4 or not isinstance(layers[1], Standardise) or not isinstance(layers[-1], Destandardise):
-        found = [type(la).__name__ for la in layers[:2]] + ["…", type(layers[-1]).__name__]
-        raise EstimatorError(f"{where}: expected an OFBENet graph (input, Standardise, …, Destandardise), "
-                             f"found layers {found}")
+    consts = list(model_scalings(model, where))
     window_length = int(model.inputs[0].shape[1])
     copy = keras.models.clone_model(model)
     copy.set_weights(model.get_weights())
@@ -187,20 +185,23 @@ def _chains(model: keras.Model, where: str) -> tuple[keras.Model, keras.Model, l
         return keras.Model(inputs, x, name=name)
 
     full = chain(copy.layers[1:], "ofbenet")
-    core = chain(copy.layers[2:-1], "ofbenet_int8_core")
-    consts = [np.asarray(v, dtype=np.float32) for v in
-              (layers[1].mean, layers[1].std, layers[-1].mean, layers[-1].std)]
+    core = chain(copy.layers[3:-1], "ofbenet_int8_core")
     return full, core, consts
+
+
+def _standardised(windows: np.ndarray, x_mean: np.ndarray, x_scale: np.ndarray) -> np.ndarray:
+    """Windows as the model's input scaling makes them: ``(x − x_mean) · x_scale`` in float32."""
+    return ((np.asarray(windows, dtype=np.float32) - x_mean) * x_scale).astype(np.float32)
 
 
 def _check_chains(model: keras.Model, full: keras.Model, core: keras.Model, consts: list[np.ndarray],
                   windows: np.ndarray, where: str) -> None:
     """Both chains must reproduce the model on a few windows (they are a chain, not a DAG)."""
-    x_mean, x_std, y_mean, y_std = consts
+    x_mean, x_scale, y_mean, y_std = consts
     for w in windows[:4]:
         ref = np.asarray(model(w[None], training=False))
         got_full = np.asarray(full(w[None], training=False))
-        z = np.asarray(core(((w[None] - x_mean) / x_std).astype(np.float32), training=False))
+        z = np.asarray(core(_standardised(w[None], x_mean, x_scale), training=False))
         got_core = z * y_std + y_mean
         tol = 1e-5 * max(1.0, float(np.abs(ref).max()))
         if not (np.allclose(got_full, ref, rtol=1e-5, atol=tol) and np.allclose(got_core, ref, rtol=1e-4,
@@ -318,8 +319,9 @@ def export_tflite(model: OFBENet | str | Path, out_dir: str | Path, representati
     windows, given = _representative(representative, window_length, max_representative)
     full, core, consts = _chains(keras_model, where)
     _check_chains(keras_model, full, core, consts, windows, where)
-    x_mean, x_std, y_mean, y_std = consts
-    standardised = ((windows - x_mean) / x_std).astype(np.float32)
+    x_mean, x_scale, y_mean, y_std = consts
+    x_std = (1.0 / x_scale.astype(np.float64)).astype(np.float32)  # the training std to 1 float32 ulp
+    standardised = _standardised(windows, x_mean, x_scale)
     float_bytes = _convert(full, None, f"{where} (float32)")
     int8_bytes = _convert(core, standardised, f"{where} (int8)")
     (in_scale, in_zero), (out_scale, out_zero) = _io_quantisation(int8_bytes)

@@ -3,21 +3,23 @@
 Architecture (fixed by the paper)::
 
     Input (T, 3) m/s²
-    → input scaling                         (inside the model: :class:`Standardise`)
+    → input scaling (x − mean) · (1/std)    (inside the model: two keras Rescaling layers)
     → 3 × [Conv1D(kernel 5; 8, 32, 64 filters) → BatchNormalization
            → LeakyReLU(negative_slope=0.1) → AveragePooling1D(pool_size)]
     → GlobalAveragePooling1D → Dense(dense_units) → Dropout(dropout) → Dense(3)
-    → target de-scaling                     (inside the model: :class:`Destandardise`)
+    → target de-scaling z · std + mean      (inside the model: keras Rescaling)
     → (3,) m/s²
 
 trained with MSE, Adam (lr 0.01), batch 8, ReduceLROnPlateau(factor 0.2, patience 15) and
 EarlyStopping(patience 5, best weights restored). What the paper leaves open is a field of
 :class:`OFBENetParams` with a documented default.
 
-Both scalings live *inside* the Keras model as small registered layers whose constants are
-stored in the layer config, so a saved ``.keras`` file maps raw m/s² windows to m/s² biases
-on its own and loads with ``keras.saving.load_model(path, safe_mode=True)``: no Lambda
-layers, no pickled Python, no side files to keep in step.
+Both scalings live *inside* the Keras model as Keras' own ``Rescaling`` layers with their
+constants in the layer config (:mod:`ofbe_model.ofbenet.layers`), so the network is built
+from built-in Keras layers only: a saved ``.keras`` file maps raw m/s² windows to m/s²
+biases on its own and loads with plain Keras 3, ``keras.saving.load_model(path)`` (safe mode),
+in an interpreter that never imports ofbe, predicting what :meth:`OFBENet.predict` does (tested):
+no Lambda layers, no custom classes, no pickled Python, no side files to keep in step.
 
 Determinism: :meth:`OFBENet.fit` calls :func:`keras.utils.set_random_seed` (Python, NumPy
 and TensorFlow seeds) and, without XLA, :func:`tf.config.experimental.enable_op_determinism`.
@@ -50,7 +52,7 @@ from ofbe_data.core.cli import import_tensorflow
 from ofbe_data.core.errors import ConfigError
 from ofbe_model.estimators.base import Estimator, EstimatorError, check_inputs, register
 from ofbe_model.estimators.domain import TrainingDomain, domain_of
-from ofbe_model.ofbenet.layers import HEAD_LAYER, Destandardise, Standardise, build_ofbenet
+from ofbe_model.ofbenet.layers import HEAD_LAYER, LEGACY_OBJECTS, build_ofbenet, upgrade_legacy
 from ofbe_model.ofbenet.params import (
     _KERAS_FILES,
     _PARAM_NAMES,
@@ -64,11 +66,6 @@ from ofbe_model.ofbenet.params import (
 
 tf = import_tensorflow()  # before keras: TensorFlow's start-up lines stay off the terminal
 import keras  # noqa: E402
-
-#: Filters of the three convolution blocks (paper).
-
-
-
 
 # ---------------------------------------------------------------------------------------------
 # Validation split and scaling statistics
@@ -454,9 +451,12 @@ class OFBENet(Estimator):
         """Read a model written by :meth:`save`, without executing code from the file.
 
         The archive's ``config.json`` is checked first: every serialised object must come
-        from Keras or be one of this module's registered scaling layers, and Lambda-like
-        layers are refused. Then ``keras.saving.load_model(path, safe_mode=True,
-        compile=False)`` builds it, and the result must map (None, T, 3) to (None, 3).
+        from Keras (or be a scaling layer of a model saved by an earlier ofbe: such a model
+        is read with :data:`~ofbe_model.ofbenet.layers.LEGACY_OBJECTS` and rebuilt of Keras
+        layers by :func:`~ofbe_model.ofbenet.layers.upgrade_legacy`, predicting as before),
+        and Lambda-like layers are refused. Then ``keras.saving.load_model(path,
+        safe_mode=True, compile=False)`` builds it, and the result must map (None, T, 3) to
+        (None, 3).
 
         Parameters
         ----------
@@ -496,13 +496,16 @@ class OFBENet(Estimator):
                 sidecar = json.loads(zf.read(SIDECAR_NAME)) if SIDECAR_NAME in names else None
         except (zipfile.BadZipFile, OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
             raise EstimatorError(f"{path}: expected {expected}, found an unreadable archive ({exc})") from exc
-        _check_config(config, path)
+        legacy = _check_config(config, path)
         try:
-            model = keras.saving.load_model(path, safe_mode=True, compile=False)
+            model = keras.saving.load_model(path, safe_mode=True, compile=False,
+                                            custom_objects=LEGACY_OBJECTS if legacy else None)
         except Exception as exc:  # Keras raises ValueError, TypeError, KeyError, OSError... on bad files
             first = str(exc).splitlines()[0][:300] if str(exc) else type(exc).__name__
             raise EstimatorError(f"{path}: expected {expected} that Keras loads in safe mode, found an "
                                  f"error: {first}") from exc
+        if legacy:
+            model = upgrade_legacy(model, str(path))
         if (not isinstance(model, keras.Model) or len(model.inputs) != 1 or len(model.outputs) != 1
                 or len(model.inputs[0].shape) != 3 or model.inputs[0].shape[2] != 3
                 or model.inputs[0].shape[1] is None or tuple(model.outputs[0].shape)[1:] != (3,)):
@@ -542,12 +545,19 @@ class OFBENet(Estimator):
         return est
 
 
-#: Modules the scaling layers are saved from: today's, and the one of models saved by ofbe 0.1.0.
-_LAYER_MODULES = frozenset({Standardise.__module__, "ofbe_model.ofbenet"})
+#: Modules the custom scaling layers of earlier models were saved from (ofbe 0.1.0, and later
+#: ``ofbe_model.ofbenet.layers`` until they became Keras' own ``Normalization``).
+_LAYER_MODULES = frozenset({"ofbe_model.ofbenet.layers", "ofbe_model.ofbenet"})
 
 
-def _check_config(config: Any, path: Path) -> None:
-    """Refuse a model configuration naming anything but Keras objects and this module's layers.
+def _check_config(config: Any, path: Path) -> bool:
+    """Refuse a model configuration naming anything but Keras objects (and the custom scaling
+    layers of models saved by an earlier ofbe).
+
+    Returns
+    -------
+    bool
+        Whether it names such an earlier layer (:data:`~ofbe_model.ofbenet.layers.LEGACY_OBJECTS`).
 
     Raises
     ------
@@ -555,7 +565,7 @@ def _check_config(config: Any, path: Path) -> None:
         A Lambda-like layer, an object from another module, or a model that is not a
         Functional model.
     """
-    own = {f"ofbe>{c.__name__}" for c in (Standardise, Destandardise)}
+    legacy = False
     if not isinstance(config, dict) or config.get("class_name") != "Functional":
         found = config.get("class_name") if isinstance(config, dict) else type(config).__name__
         raise EstimatorError(f"{path}: config.json: expected a Functional Keras model, found {found!r}")
@@ -579,6 +589,10 @@ def _check_config(config: Any, path: Path) -> None:
         keras_builtin = isinstance(module, str) and (module == "keras" or module.startswith("keras."))
         if module == "builtins" and cls_name == "function":
             keras_builtin = True
-        if not (keras_builtin or (module in _LAYER_MODULES and registered in own)):
-            raise EstimatorError(f"{path}: config.json: expected Keras objects and ofbe scaling layers only, "
-                                 f"found {cls_name!r} from module {module!r}")
+        if module in _LAYER_MODULES and registered in LEGACY_OBJECTS:
+            legacy = True
+        elif not keras_builtin:
+            raise EstimatorError(f"{path}: config.json: expected Keras objects only (and the scaling "
+                                 f"layers of models saved by earlier ofbe), found {cls_name!r} from module "
+                                 f"{module!r}")
+    return legacy

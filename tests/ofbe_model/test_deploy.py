@@ -35,6 +35,7 @@ from ofbe_model.deploy.tflite import (
 from ofbe_model.estimators.base import EstimatorError
 from ofbe_model.estimators.common import MG
 from ofbe_model.estimators.priors import GravityPrior
+from ofbe_model.ofbenet.layers import model_scalings
 from ofbe_model.ofbenet.network import OFBENet
 
 G = 9.81
@@ -98,10 +99,12 @@ def test_export_writes_two_models_and_a_sidecar(net: dict, exported: tuple[Path,
         content = (out / entry["file"]).read_bytes()
         assert entry["bytes"] == len(content) and entry["sha256"] == hashlib.sha256(content).hexdigest()
     assert sidecar["models"]["int8"]["bytes"] < 0.6 * sidecar["models"]["float32"]["bytes"]
-    layers = net["est"].model_.layers
+    x_mean, x_scale, y_mean, y_std = model_scalings(net["est"].model_)
     int8 = sidecar["models"]["int8"]
-    assert np.allclose(int8["input"]["standardise_mean"], layers[1].mean)
-    assert np.allclose(int8["output"]["destandardise_std"], layers[-1].std)
+    assert np.array_equal(np.float32(int8["input"]["standardise_mean"]), x_mean)
+    np.testing.assert_allclose(int8["input"]["standardise_std"], 1.0 / x_scale, rtol=1e-7)  # 1/std inside
+    assert np.array_equal(np.float32(int8["output"]["destandardise_mean"]), y_mean)
+    assert np.array_equal(np.float32(int8["output"]["destandardise_std"]), y_std)
 
 
 @needs_litert

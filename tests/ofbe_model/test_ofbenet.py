@@ -25,10 +25,17 @@ from ofbe_data.dataset.store import DatasetInfo
 from ofbe_data.dataset.writer import WindowWriter
 from ofbe_model.cli.train import main
 from ofbe_model.estimators.base import EstimatorError, make_estimator
-from ofbe_model.ofbenet.layers import Destandardise, Standardise, build_ofbenet, feature_length
+from ofbe_model.ofbenet.layers import (
+    build_ofbenet,
+    feature_length,
+    input_scaling_layers,
+    model_scalings,
+    target_scaling_layer,
+)
 from ofbe_model.ofbenet.network import OFBENet, group_validation_split
 from ofbe_model.ofbenet.params import FILTERS, SIDECAR_NAME, OFBENetParams
 from ofbe_model.ofbenet.training import dataset_dirname, read_params, read_seed_count
+from tests.ofbe_model.plain_keras import plain_keras_predict
 
 T = 200
 G = 9.81
@@ -61,8 +68,8 @@ def test_architecture_follows_the_paper() -> None:
     model = build_ofbenet(T, params, [0, 0, G], [1, 1, 1], [0, 0, 0], [1, 1, 1])
     kinds = [type(layer).__name__ for layer in model.layers]
     block = ["Conv1D", "BatchNormalization", "LeakyReLU", "AveragePooling1D"]
-    assert kinds == ["InputLayer", "Standardise", *block * 3, "GlobalAveragePooling1D", "Dense", "Dropout",
-                     "Dense", "Destandardise"]
+    assert kinds == ["InputLayer", "Rescaling", "Rescaling", *block * 3, "GlobalAveragePooling1D", "Dense",
+                     "Dropout", "Dense", "Rescaling"]
     convs = [la for la in model.layers if isinstance(la, keras.layers.Conv1D)]
     assert tuple(c.filters for c in convs) == FILTERS == (8, 32, 64)
     assert all(c.kernel_size == (5,) for c in convs)
@@ -81,9 +88,13 @@ def test_architecture_follows_the_paper() -> None:
 
 def test_scaling_is_inside_the_model() -> None:
     x = np.random.default_rng(0).normal(size=(4, 7, 3)).astype(np.float32) + 5.0
-    z = np.asarray(Standardise([1.0, 2.0, 3.0], [2.0, 4.0, 0.5])(x))
-    assert np.allclose(z, (x - [1.0, 2.0, 3.0]) / [2.0, 4.0, 0.5], atol=1e-6)
-    y = np.asarray(Destandardise([1.0, 2.0, 3.0], [2.0, 4.0, 0.5])(z[:, 0, :]))
+    centre, scale = input_scaling_layers([1.0, 2.0, 3.0], [2.0, 4.0, 0.3])
+    z = np.asarray(scale(centre(x)))
+    # exactly (x − mean) · fl32(1/std) in float32
+    reciprocal = np.float32(1) / np.float32([2.0, 4.0, 0.3])
+    assert np.array_equal(z, (x - np.float32([1.0, 2.0, 3.0])) * reciprocal)
+    y = np.asarray(target_scaling_layer([1.0, 2.0, 3.0], [2.0, 4.0, 0.3])(z[:, 0, :]))
+    assert np.array_equal(y, z[:, 0, :] * np.float32([2.0, 4.0, 0.3]) + np.float32([1.0, 2.0, 3.0]))
     assert np.allclose(y, x[:, 0, :], atol=1e-5)
     # with a zero head, the model's output is exactly the target mean, in m/s², for raw input
     model = build_ofbenet(T, OFBENetParams(), [0, 0, G], [0.1, 0.1, 0.1], [0.05, -0.2, 0.3], [0.3, 0.3, 0.3])
@@ -91,8 +102,13 @@ def test_scaling_is_inside_the_model() -> None:
     head.set_weights([np.zeros_like(w) for w in head.get_weights()])
     out = np.asarray(model.predict_on_batch(synthetic(4, 0)[0]))
     assert np.allclose(out, [0.05, -0.2, 0.3], atol=1e-6)
+    expected = [np.float32([0, 0, G]), np.float32(1) / np.float32([0.1] * 3), np.float32([0.05, -0.2, 0.3]),
+                np.float32([0.3] * 3)]
+    assert all(np.array_equal(c, e) for c, e in zip(model_scalings(model), expected, strict=True))
     with pytest.raises(EstimatorError, match="std"):
-        Standardise([0.0], [0.0])
+        input_scaling_layers([0.0], [0.0])
+    with pytest.raises(EstimatorError, match="OFBENet graph"):
+        model_scalings(keras.Sequential([keras.Input((T, 3)), keras.layers.Dense(3)]))
 
 
 def test_init_mirrors_params_and_registry() -> None:
@@ -201,6 +217,105 @@ def test_save_then_load_in_a_fresh_process_predicts_identically(fitted, tmp_path
     assert loaded.best_epoch_ == est.best_epoch_ and loaded.window_length_ == T
     with pytest.raises(EstimatorError, match=".keras"):
         est.save(tmp_path / "model.h5")
+
+
+def test_a_fold_model_loads_with_plain_keras_in_an_interpreter_without_ofbe(fitted, tmp_path) -> None:
+    """What ofbe-train saves (OFBENet.save) opens with keras.saving.load_model alone, safe mode,
+    in a fresh interpreter that never imports ofbe, and predicts exactly what OFBENet.load does."""
+    est, xt, _, mt = fitted
+    path = est.save(tmp_path / "fold-0.seed-0.keras")
+    config = json.loads(zipfile.ZipFile(path).read("config.json"))
+    modules = set(re.findall(r'"module": "([^"]+)"', json.dumps(config)))
+    assert modules and all(m == "keras" or m.startswith("keras.") for m in modules), modules
+    plain = plain_keras_predict(path, xt[:32], tmp_path / "child")
+    ours = OFBENet.load(path).predict(xt[:32], mt[:32])
+    # identical, not close: the same float32 graph (predict_on_batch and predict, one batch each)
+    assert np.array_equal(plain[0].astype(np.float64), ours)
+    assert np.array_equal(plain[1].astype(np.float64), ours)
+    assert np.array_equal(ours, est.predict(xt[:32], mt[:32]))
+
+
+#: The custom scaling layers models were saved with before they became Keras' own Rescaling
+#: layers (ofbe_model/ofbenet/layers.py until then), copied: they write an earlier model file.
+OLD_LAYERS = """\
+import json, sys
+
+import keras
+import numpy as np
+
+
+@keras.saving.register_keras_serializable(package="ofbe")
+class Standardise(keras.layers.Layer):
+    def __init__(self, mean, std, **kwargs):
+        super().__init__(**kwargs)
+        self.mean, self.std = [float(v) for v in mean], [float(v) for v in std]
+
+    def call(self, inputs):
+        mean = keras.ops.convert_to_tensor(np.asarray(self.mean, dtype=np.float32), dtype=inputs.dtype)
+        std = keras.ops.convert_to_tensor(np.asarray(self.std, dtype=np.float32), dtype=inputs.dtype)
+        return (inputs - mean) / std
+
+    def compute_output_shape(self, input_shape):
+        return input_shape
+
+    def get_config(self):
+        return {**super().get_config(), "mean": list(self.mean), "std": list(self.std)}
+
+
+@keras.saving.register_keras_serializable(package="ofbe")
+class Destandardise(Standardise):
+    def call(self, inputs):
+        mean = keras.ops.convert_to_tensor(np.asarray(self.mean, dtype=np.float32), dtype=inputs.dtype)
+        std = keras.ops.convert_to_tensor(np.asarray(self.std, dtype=np.float32), dtype=inputs.dtype)
+        return inputs * std + mean
+
+
+new = keras.saving.load_model(sys.argv[1])
+c = json.loads(sys.argv[2])
+inputs = keras.Input(shape=tuple(new.inputs[0].shape[1:]), name="window")
+x = Standardise(c["x_mean"], c["x_std"], name="input_scaling")(inputs)
+for layer in new.layers[3:-1]:
+    x = layer(x)
+old = keras.Model(inputs, Destandardise(c["y_mean"], c["y_std"], name="target_scaling")(x), name="ofbenet")
+old.save(sys.argv[3])
+np.save(sys.argv[4], np.asarray(old.predict_on_batch(np.load(sys.argv[5]))))
+"""
+
+
+@pytest.mark.parametrize("module", ["ofbe_model.ofbenet.layers", "ofbe_model.ofbenet"])
+def test_a_model_saved_with_the_earlier_custom_layers_loads_and_predicts_as_before(module, tmp_path) -> None:
+    """A file with ofbe>Standardise / ofbe>Destandardise (what earlier versions wrote) still loads:
+    rebuilt of Keras layers, it predicts what the earlier network predicted, bit for bit, and is
+    saved again without the custom layers. The network built today computes the same numbers."""
+    keras.utils.set_random_seed(5)
+    consts = {"x_mean": [0.05, -0.1, G], "x_std": [0.3, 0.21, 0.07], "y_mean": [0.02, -0.03, 0.1],
+              "y_std": [0.31, 0.29, 0.05]}
+    new = OFBENet()
+    new.model_ = build_ofbenet(T, OFBENetParams(), *consts.values())
+    new_path = new.save(tmp_path / "new.keras")
+    x = synthetic(16, seed=2)[0]
+    np.save(tmp_path / "x.npy", x)
+    env = {**os.environ, "TF_CPP_MIN_LOG_LEVEL": "3"}
+    files = [str(tmp_path / name) for name in ("written.keras", "old.npy", "x.npy")]
+    args = [str(new_path), json.dumps(consts), *files]
+    proc = subprocess.run([sys.executable, "-c", OLD_LAYERS, *args], capture_output=True, text=True, env=env,
+                          cwd=tmp_path, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    config = json.loads(zipfile.ZipFile(tmp_path / "written.keras").read("config.json"))
+    for layer in config["config"]["layers"]:  # defined in __main__ here, in ofbe's module then
+        if str(layer.get("registered_name")).startswith("ofbe>"):
+            layer["module"] = module
+    old_path = _rewrite(tmp_path / "written.keras", tmp_path / "old.keras", config)
+    assert '"registered_name": "ofbe>Standardise"' in zipfile.ZipFile(old_path).read("config.json").decode()
+    meta = pd.DataFrame({"device": ["d1"] * len(x), "g_local": G})
+    before = np.load(tmp_path / "old.npy").astype(np.float64)
+    loaded = OFBENet.load(old_path)
+    assert [type(la).__name__ for la in loaded.model_.layers[1:3]] == ["Rescaling", "Rescaling"]
+    assert np.array_equal(loaded.predict(x, meta), before)
+    assert np.array_equal(new.predict(x, meta), before)  # today's network: the earlier arithmetic
+    resaved = loaded.save(tmp_path / "resaved.keras")
+    assert b"ofbe>" not in zipfile.ZipFile(resaved).read("config.json")
+    assert np.array_equal(OFBENet.load(resaved).predict(x, meta), before)
 
 
 @pytest.fixture(scope="module")
