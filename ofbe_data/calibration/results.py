@@ -335,7 +335,7 @@ def _group_result(device: str, pc: int, rows: pd.DataFrame, files: list[Path], h
         fs_hz=float(fs.mean()) if fs.size else None,
         temperature_c=float(temps.mean()) if temps.size else None, n_rows=len(rows),
         sources=tuple(SourceFile(str(files[i]), hashes[files[i]]) for i in used),
-        recordings=tuple(f"{r.session}/{r.recording}" for r in rows.itertuples(index=False)),
+        recordings=tuple(dict.fromkeys(f"{r.session}/{r.recording}" for r in rows.itertuples(index=False))),
         segments=tuple(segs), stem=f"{device}.pc{pc}",
         raw_files=tuple(sorted({f"{s.session}/{Path(s.raw_file).as_posix()}" for s in segs})),
         matrix=tuple(_vec(row) for row in matrix), bias_se=bias_se, noise_std=noise_std)

@@ -519,8 +519,11 @@ def _label_level(out: SessionLabels, row: dict[str, Any], params: LabelParams) -
         leak = 1000.0 * math.sin(math.radians(tilt))
         out.rejections.append(Rejection(row["recording"], row["device"], NOT_LEVEL, (
             f"{what}, above label.max_level_tilt_deg = {params.max_level_tilt_deg:.3g}°: a level label "
-            f"would carry about {leak:.0f} mg of gravity in its tangential axes; level the device, or "
-            "label the session as rotated (with a reference) or multi-position")))
+            f"would carry about {leak:.0f} mg of gravity in its tangential axes. One window cannot tell a "
+            f"tilt of {tilt:.2f}° from a tangential bias of about {leak:.0f} mg: if the board is known to "
+            f"be level (a verified level mount), set label.max_level_tilt_deg above {tilt:.2f} (in a "
+            "params YAML given to ofbe-label --params) and the offset is labelled as bias; otherwise level "
+            "the device, or label the session as rotated (with a reference) or multi-position")))
         return
     if tilt > params.warn_level_tilt_deg:
         leak = 1000.0 * math.sin(math.radians(tilt))

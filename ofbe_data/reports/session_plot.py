@@ -9,6 +9,7 @@ the detected poses here instead of annotating them by hand (imucal needs its GUI
 
 from __future__ import annotations
 
+import textwrap
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -33,6 +34,10 @@ def _decimate(n: int) -> slice:
     return slice(None, None, max(1, n // MAX_POINTS))
 
 
+TITLE_CHARS = 80
+"""Characters per line of a panel title: an 8-inch panel holds about 95 at 10 pt."""
+
+
 def _title(rec_id: str, dev_id: str, rows: Sequence[dict[str, Any]], reasons: Sequence[str]) -> str:
     if rows:
         what = f"{len(rows)} pose{'s' if len(rows) != 1 else ''} labelled"
@@ -41,7 +46,7 @@ def _title(rec_id: str, dev_id: str, rows: Sequence[dict[str, Any]], reasons: Se
     if reasons:
         shown = "; ".join(reasons[:2]) + (f"; {len(reasons) - 2} more" if len(reasons) > 2 else "")
         what += f" — rejected: {shown}"
-    return f"{rec_id} / {dev_id}: {what}"
+    return textwrap.fill(f"{rec_id} / {dev_id}: {what}", width=TITLE_CHARS, max_lines=3, placeholder=" …")
 
 
 def plot_session(labels: SessionLabels, path: str | Path) -> Path:

@@ -55,7 +55,7 @@ from ofbe_data.labelling.conventions import MATRIX_COLUMNS
 from ofbe_data.labelling.labels import LabelParams
 from ofbe_data.labelling.store import read_labels
 from ofbe_data.simulator import load_config, simulate_campaign
-from tests.conftest import kalibr_imu_parameters
+from tests.conftest import EXAMPLES, kalibr_imu_parameters
 
 WRITTEN = datetime(2025, 6, 1, 12, 0, 0, tzinfo=UTC)
 #: Every key of Kalibr's IMU yaml (https://github.com/ethz-asl/kalibr/wiki/yaml-formats).
@@ -274,6 +274,19 @@ def test_ggir_default_is_its_own_unit_sphere_and_no_cell_is_empty(campaign, appa
         numeric = [c for c in fmt.GGIR_COLUMNS if c.startswith(("scale.", "offset.", "temperature.")) or
                    c == "meantempcal"]
         assert table[numeric].notna().all().all()
+
+
+def test_json_lists_each_recording_once(tmp_path) -> None:
+    """Issue 22: a continuous recording of many poses was listed once per pose (imucal's
+    continuous session: 13 poses in one recording)."""
+    from ofbe_data.labelling.labels import label_session
+    from ofbe_data.labelling.store import write_session
+
+    labels = label_session(EXAMPLES / "imucal-ferraris" / "ferraris-continuous")
+    path, _ = write_session(labels, LabelParams(), tmp_path)
+    (r,) = results_from_labels(path).results
+    doc = json.loads(fmt.json_file(r, WRITTEN))
+    assert r.n_rows == 13 and doc["recordings"] == ["ferraris-continuous/rec-01"]
 
 
 def test_ggir_gives_every_raw_file_its_own_row(campaign, apparent_labels) -> None:

@@ -337,7 +337,41 @@ def test_a_tilted_gravity_aligned_device_is_rejected_as_not_level(tmp_path: Path
     assert re.match(r"the measured gravity direction is [4-7]\.\d\d° from the nearest axis \+z "
                     r"\(roll -?\d\.\d\d°, pitch -?\d\.\d\d°\), above label\.max_level_tilt_deg = 2\.87°: "
                     r"a level label would carry about \d+ mg", rej.detail), rej.detail
+    # issue 22: both readings, and the documented way for a board known to be level
+    assert re.search(r"One window cannot tell a tilt of [4-7]\.\d\d° from a tangential bias of about \d+ mg: "
+                     r"if the board is known to be level \(a verified level mount\), set "
+                     r"label\.max_level_tilt_deg above [4-7]\.\d\d \(in a params YAML given to ofbe-label "
+                     r"--params\)", rej.detail), rej.detail
     assert [r["device"] for r in labels.rows] == ["sparkfun-2"]
+    from ofbe_data.labelling.labels import LabelParams, label_session
+
+    level = label_session(session, LabelParams(min_samples=1000, max_level_tilt_deg=8.0))
+    (row,) = [r for r in level.rows if r["device"] == "sparkfun-1"]  # taken as bias, as asked
+    assert row["label_method"] == "level" and abs(row["bias_y"]) > 0.5
+
+
+def test_session_plot_titles_fit_the_figure(tmp_path: Path, monkeypatch) -> None:
+    """Issue 22: panel titles with a rejection's reason ran off the figure."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from ofbe_data.reports import session_plot
+
+    session = _copy_session(tmp_path / "s")
+    _tilt(session, "sparkfun-1", 5.8)
+    labels = _label(session, tmp_path)
+    figures = []
+    monkeypatch.setattr(session_plot, "save_png", lambda fig, path: figures.append(fig) or Path(path))
+    session_plot.plot_session(labels, tmp_path / "plot.png")
+    (fig,) = figures
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    titles = [ax.title for ax in fig.axes if ax.title.get_text()] + [ax._left_title for ax in fig.axes
+                                                                       if ax._left_title.get_text()]
+    assert any("not-level" in t.get_text() for t in titles)
+    for t in titles:
+        box = t.get_window_extent(renderer)
+        assert fig.bbox.x0 - 1 <= box.x0 and box.x1 <= fig.bbox.x1 + 1, (t.get_text(), box, fig.bbox)
 
 
 def test_a_slight_tilt_is_kept_with_a_warning_and_its_measured_roll(tmp_path: Path) -> None:
