@@ -38,7 +38,7 @@ from ofbe_data.io.recording import Recording
 from ofbe_data.labelling.checks import norm_problem
 from ofbe_data.labelling.stationarity import StaticParams, check_static, longest_run
 from ofbe_model.estimators.base import Estimator, EstimatorError
-from ofbe_model.estimators.domain import TrainingDomain, domain_problems
+from ofbe_model.estimators.domain import TrainingDomain, domain_problems, window_direction
 
 DEFAULT_WINDOW = 3000
 
@@ -154,11 +154,14 @@ def _screen(model: Estimator, t: Target, w: np.ndarray, allow_outside: bool, ent
     if norm is not None:
         entry["error"] = f"implausible-norm: {norm}"
         return False
-    refusals, warns = domain_problems(getattr(model, "domain_", None), t.device, t.recording.fs_hz)
+    refusals, warns = domain_problems(getattr(model, "domain_", None), t.device, t.recording.fs_hz,
+                                      window_direction(w))
     if refusals and not allow_outside:
         entry["error"] = ("outside the training domain: " + "; ".join(refusals)
                           + " (--allow-outside-domain to estimate anyway)")
         return False
+    if refusals:
+        entry["outside_domain"] = "; ".join(refusals)
     if refusals or warns:
         entry["warnings"] = refusals + warns
     return True
@@ -170,7 +173,8 @@ def predict(model: Estimator, items: Sequence[Target], length: int, allow_outsid
 
     A window whose ‖mean‖ is implausible for its local gravity (a unit mistake, methods.md
     §9) or whose sample rate lies outside the model's training domain gets no estimate (the
-    latter unless ``allow_outside``); a device the model never saw gets a warning.
+    latter unless ``allow_outside``, and then the result carries ``outside_domain`` with the
+    reasons): a sample rate, device or gravity direction the model was not trained on.
     """
     results: list[dict[str, Any]] = []
     ready, windows = [], []

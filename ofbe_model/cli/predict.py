@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from collections.abc import Sequence
 from typing import Any
@@ -37,6 +38,28 @@ def _table(results: Sequence[dict[str, Any]], method: str) -> str:
     return "\n".join(lines)
 
 
+def _gravity(text: str) -> float:
+    """``--g-local``: a finite gravity magnitude, m/s² (1–30: anywhere a board can rest)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number in m/s², found {text!r}") from None
+    if not (math.isfinite(value) and 1.0 <= value <= 30.0):
+        raise argparse.ArgumentTypeError(f"expected a finite gravity in m/s² (1 to 30), found {text!r}")
+    return value
+
+
+def _finite(obj: Any) -> Any:
+    """``obj`` with every non-finite float replaced by None (JSON has no NaN)."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_finite(v) for v in obj]
+    return obj
+
+
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="ofbe-predict",
                                 description="Bias (and its standard deviation, where the method has one) of "
@@ -44,13 +67,14 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("model", help="saved model: .keras (OFBENet) or .json (gravity-prior)")
     p.add_argument("recordings", nargs="+", help="session folders or raw device files")
     p.add_argument("--device", help="device id for bare files (gravity-prior uses its per-device prior)")
-    p.add_argument("--g-local", type=float,
+    p.add_argument("--g-local", type=_gravity,
                    help=f"local gravity for bare files, m/s² (default {STANDARD_GRAVITY})")
     p.add_argument("--window-length", type=int, help="samples per window for models that take any length "
                                                      f"(default {DEFAULT_WINDOW})")
     p.add_argument("--output", choices=("json", "table"), default="json")
     p.add_argument("--allow-outside-domain", action="store_true",
-                   help="estimate even where the sample rate is outside the model's training range")
+                   help="estimate even where the device, sample rate or gravity direction is outside what "
+                        "the model was trained on (each such result says why in 'outside_domain')")
     add_verbose(p)
     return p
 
@@ -74,8 +98,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     method = getattr(model, "name", type(model).__name__)
     domain = trained_on(model)
     if args.output == "json":
-        print(json.dumps({"model": str(args.model), "method": method, "trained_on": domain,
-                          "results": results}, indent=1))
+        print(json.dumps(_finite({"model": str(args.model), "method": method, "trained_on": domain,
+                                  "results": results}), indent=1, allow_nan=False))
     else:
         print(_table(results, method))
     print(f"ofbe-predict: {method} trained on "

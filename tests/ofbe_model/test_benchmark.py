@@ -4,6 +4,7 @@ fold, the report's files, the physics the numbers must show, and ofbe-predict.""
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -163,8 +164,11 @@ def test_predict_says_what_the_model_was_trained_on_and_refuses_another_rate(rot
     out = json.loads(captured.out)
     assert "400 Hz" in out["trained_on"] and "other-unit, sparkfun-1" in out["trained_on"]
     assert all(r["error"].startswith("outside the training domain: sample rate 150 Hz is outside what the "
-                                     "model was trained on (400 Hz, ±10%) (--allow-outside-domain")
-               for r in out["results"])
+                                     "model was trained on (400 Hz, ±10%)") for r in out["results"])
+    assert all(r["error"].endswith("(--allow-outside-domain to estimate anyway)") for r in out["results"])
+    # issue 24: a device the model never saw is refused too, naming it
+    unseen = "device 'sparkfun-2' is not among the 2 devices"
+    assert all((unseen in r["error"]) == (r["device"] == "sparkfun-2") for r in out["results"])
     assert ("ofbe-predict: gravity-prior trained on 288 windows of 1000 samples from other-unit, "
             "sparkfun-1, 400 Hz") in captured.err
     assert predict_main([str(path), str(session), "--window-length", str(T), "--allow-outside-domain"]) == 0
@@ -173,5 +177,33 @@ def test_predict_says_what_the_model_was_trained_on_and_refuses_another_rate(rot
     assert all(len(r["bias_m_s2"]) == 3 for r in results)
     unseen = [r for r in results if r["device"] == "sparkfun-2"]
     assert unseen
-    assert all("device 'sparkfun-2' is not among the 2 devices" in r["warnings"][-1] for r in unseen)
+    assert all("device 'sparkfun-2' is not among the 2 devices" in r["outside_domain"] for r in unseen)
+    assert all(r["outside_domain"].startswith("sample rate 150 Hz") for r in results)  # each says why
     assert "warning: " in captured.err and "sparkfun-2.csv: device 'sparkfun-2' is not among" in captured.err
+
+
+def test_predict_refuses_a_gravity_direction_it_never_saw_and_non_finite_flags(rotated, tmp_path,
+                                                                              capsys) -> None:
+    """Issue 24: a model trained on level (z-up) windows gave wrong estimates for a tilted board;
+    --g-local nan gave a misleading message and a bare NaN in the JSON."""
+    from ofbe_data import load_dataset
+
+    tmp, ds = rotated
+    data = load_dataset(ds)
+    u = data.X.mean(axis=1)
+    level = (u[:, 2] / np.linalg.norm(u, axis=1)) > np.cos(np.radians(10))  # the near-z-up windows only
+    assert 0 < level.sum() < len(u)
+    path = tmp_path / "gp.json"
+    GravityPrior().fit(data.X[level], data.y[level], data.meta[level].reset_index(drop=True)).save(path)
+    session = tmp / "raw" / "rot-pc001"
+    code = predict_main([str(path), str(session), "--window-length", str(T)])
+    out = json.loads(capsys.readouterr().out)["results"]
+    tilted = [r for r in out if "error" in r and "gravity direction" in r["error"]]
+    assert code == 1 and tilted
+    assert all(re.search(r"gravity direction \(-?\d\.\d{3}, -?\d\.\d{3}, -?\d\.\d{3}\) is \d+\.\d° from "
+                         r"every training window's \(at most 15°\)", r["error"]) for r in tilted)
+    for bad in ("nan", "inf", "0"):
+        with pytest.raises(SystemExit) as exit_:
+            predict_main([str(path), str(session), "--g-local", bad])
+        assert exit_.value.code == 2
+        assert f"expected a finite gravity in m/s² (1 to 30), found '{bad}'" in capsys.readouterr().err
