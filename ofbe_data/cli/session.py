@@ -2,8 +2,12 @@
 before labelling it (``check``).
 
 ``init DIR`` detects each file's format, columns, units and rate (:mod:`ofbe_data.io.detect`),
-prints every decision with its evidence, and writes ``DIR/session.yaml`` with the evidence as
-YAML comments beside the keys. A case the files do not settle stops with the flag to give.
+prints every decision with its evidence (the rate as ``check`` reports it), and writes
+``DIR/session.yaml`` with the evidence as YAML comments beside the keys. A file with two
+accelerometer triads gives two devices naming it; ``power_cycle`` comes only from an explicit
+pattern of the folder's name (``pc3``…), else 1 with a warning. A case the files do not settle
+stops with the flag to give. The manifest's pieces (files, devices, recordings, the YAML with
+its evidence) are in :mod:`ofbe_data.cli.session_init`.
 
 ``check DIR...`` validates each session, reads every file and runs labelling in memory (nothing
 is written, the raw folder is never touched), and prints per file what was found and what
@@ -18,31 +22,38 @@ exists without ``--force``).
 from __future__ import annotations
 
 import argparse
-import fnmatch
 import math
-import re
 import sys
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
+from ofbe_data.cli.session_init import (
+    DATA_SUFFIXES,
+    _devices,
+    assign_devices,
+    data_files,
+    group_recordings,
+    manifest_text,
+    power_cycle_of,
+    sanitise,
+)
 from ofbe_data.core.atomic import write_bytes_atomic
 from ofbe_data.core.cli import EXIT_DATA, EXIT_OK, EXIT_USAGE, add_params, command, fail
 from ofbe_data.core.errors import OfbeError, OutputExistsError
-from ofbe_data.io.detect import Detection, Hints, show_value, sniff_text
+from ofbe_data.io.detect import sniff_text
+from ofbe_data.io.detect_result import Detection, Hints, show_value
 from ofbe_data.io.detect_units import DetectionError, fmt_num, quiet_mean
+from ofbe_data.io.device_options import COLUMN_KEYS, GYRO_KEYS, GYRO_UNITS
 from ofbe_data.io.formats import read_device_file
 from ofbe_data.io.gravity import G0
 from ofbe_data.io.manifest import (
     ACC_UNITS,
     ID_PATTERN,
     KINDS,
-    MANIFEST_FORMAT,
     MANIFEST_NAME,
     TIME_UNITS,
     SessionManifest,
@@ -57,8 +68,6 @@ from ofbe_data.labelling.labels import SessionLabels, label_params_from, label_s
 from ofbe_data.labelling.next_pose import report_lines
 
 PROG = "ofbe-session"
-DATA_SUFFIXES = (".csv", ".tsv", ".txt", ".dat", ".log", ".ssv", ".asc", ".bin", ".raw", ".mscip")
-"""Files ``init`` takes for data files (others are listed as ignored)."""
 REFERENCE_FORMATS = ("mscip-csv", "mscip-bin")
 """Formats of the reference IMU: a device of these is the reference of a rotated session."""
 
@@ -91,9 +100,11 @@ def _pair(text: str) -> tuple[str, str]:
 
 def _columns(text: str) -> dict[str, str]:
     out = dict(_pair(p) for p in text.split(","))
-    bad = [k for k in out if k not in ("t", "ax", "ay", "az", "temperature")]
-    if bad or not {"ax", "ay", "az"} <= set(out):
-        raise argparse.ArgumentTypeError(f"expected t=…,ax=…,ay=…,az=…[,temperature=…], found {text!r}")
+    bad = [k for k in out if k not in COLUMN_KEYS]
+    gyro = [k for k in GYRO_KEYS if k in out]
+    if bad or not {"ax", "ay", "az"} <= set(out) or len(gyro) not in (0, 3):
+        raise argparse.ArgumentTypeError("expected t=…,ax=…,ay=…,az=…[,temperature=…][,gx=…,gy=…,gz=…], "
+                                         f"found {text!r}")
     return out
 
 
@@ -111,7 +122,8 @@ def _parser() -> argparse.ArgumentParser:
                    "reference, else gravity-aligned)")
     i.add_argument("--device", action="append", type=_pair, default=[], metavar="ID=GLOB",
                    help="files matching GLOB (relative path or file name) belong to device ID; repeat "
-                   "per device (default: every file to one device 'dut')")
+                   "per device (default: every file to one device 'dut'; files holding two accelerometer "
+                   "triads give two devices, ID-1 and ID-2, that read the same files)")
     i.add_argument("--reference", metavar="ID", help="the reference device of a rotated session (default: "
                    "the device whose files are mscip-csv or mscip-bin)")
     i.add_argument("--model", action="append", type=_pair, default=[], metavar="ID=MODEL",
@@ -127,13 +139,16 @@ def _parser() -> argparse.ArgumentParser:
                    "has no column line)")
     i.add_argument("--columns", type=_columns, metavar="t=NAME,ax=NAME,ay=NAME,az=NAME",
                    help="every column by name (0-based indices without a column line); t may be left out "
-                   "with --rate")
+                   "with --rate; gx=,gy=,gz= map the angular rate")
+    i.add_argument("--gyro-unit", choices=GYRO_UNITS, help="unit of the angular-rate columns (default: "
+                   "from their names or values; left unmapped when neither says)")
     site = i.add_mutually_exclusive_group()
     site.add_argument("--site", metavar="LAT,HEIGHT_M", help="latitude (degrees) and height (m) of the "
                       "site: local gravity from WGS-84")
     site.add_argument("--gravity", type=float, metavar="G", help="local gravity, m/s²")
-    i.add_argument("--power-cycle", type=int, metavar="N", help="bias-instance id (default: the number "
-                   "the session folder's name ends with, else 0)")
+    i.add_argument("--power-cycle", type=int, metavar="N", help="bias-instance id (default: the number of "
+                   "an explicit pattern in the session folder's name, pc3, pc-003, power_cycle_3 or cycle3; "
+                   "else 1, with a warning: other digits are usually a model number)")
     i.add_argument("--force", action="store_true", help="replace an existing session.yaml")
     c = sub.add_parser("check", help="validate sessions and say what labelling would do",
                        description="Validate each session, read every file and run labelling in memory "
@@ -148,171 +163,10 @@ def _parser() -> argparse.ArgumentParser:
 # --------------------------------------------------------------------------- init
 
 
-def sanitise(name: str) -> str:
-    """An id of ``[A-Za-z0-9._-]+`` from a folder or file name."""
-    return re.sub(r"[^A-Za-z0-9._-]+", "-", name).strip("-") or "x"
-
-
-def data_files(folder: Path) -> tuple[list[str], list[str]]:
-    """(data files, ignored files) under ``folder``, relative POSIX paths, sorted."""
-    found, ignored = [], []
-    for p in sorted(folder.rglob("*")):
-        rel = p.relative_to(folder).as_posix()
-        if not p.is_file() or any(part.startswith((".", "_")) for part in Path(rel).parts):
-            continue
-        if p.name == MANIFEST_NAME:
-            continue
-        (found if p.suffix.lower() in DATA_SUFFIXES else ignored).append(rel)
-    return found, ignored
-
-
-def assign_devices(files: list[str], patterns: list[tuple[str, str]]) -> dict[str, list[str]]:
-    """Files per device id (first matching ``--device`` pattern; all to ``dut`` without any)."""
-    if not patterns:
-        return {"dut": list(files)}
-    out: dict[str, list[str]] = {dev: [] for dev, _ in patterns}
-    for rel in files:
-        dev = next((d for d, g in patterns if fnmatch.fnmatch(rel, g) or fnmatch.fnmatch(Path(rel).name, g)),
-                   None)
-        if dev is None:
-            raise UsageError(f"{rel}: matches no --device pattern ({', '.join(g for _, g in patterns)}): "
-                               "give --device ID=GLOB for it")
-        out[dev].append(rel)
-    for dev, got in out.items():
-        if not got:
-            raise UsageError(f"--device {dev}: its pattern matches no data file")
-    return out
-
-
-def _pair_up(by_device: dict[str, list[str]], key: Any) -> dict[str, dict[str, str]] | None:
-    """Files grouped by ``key(file)`` when every group holds one file of every device, else None."""
-    groups: dict[str, dict[str, str]] = {}
-    for dev, files in by_device.items():
-        for f in files:
-            group = groups.setdefault(key(f), {})
-            if dev in group:
-                return None
-            group[dev] = f
-    return groups if all(len(g) == len(by_device) for g in groups.values()) else None
-
-
-def group_recordings(by_device: dict[str, list[str]]) -> list[tuple[str, dict[str, str]]]:
-    """Recordings as (id, files per device).
-
-    One device: one recording per file (id: its folder when each file has its own, else its
-    name). Several: the files of one recording share a folder (``rec-01/dut.csv``,
-    ``rec-01/ref.csv``), else a name (``dut/rec-01.csv``, ``ref/rec-01.csv``), else they pair
-    up in sorted order (ids ``rec-01``…).
-
-    Raises
-    ------
-    UsageError
-        Several devices whose files pair up in none of these ways.
-    """
-    devices = list(by_device)
-    if len(devices) == 1:
-        files = by_device[devices[0]]
-        parents = [str(Path(f).parent) for f in files]
-        by_parent = "." not in parents and len(set(parents)) == len(parents)
-        ids = [sanitise(p.replace("/", "-")) if by_parent else sanitise(Path(f).stem) for f, p in
-               zip(files, parents, strict=True)]
-        if len(set(ids)) != len(ids):
-            ids = [sanitise(str(Path(f).with_suffix("")).replace("/", "-")) for f in files]
-        return [(rid, {devices[0]: f}) for rid, f in zip(ids, files, strict=True)]
-    keys = [lambda f: str(Path(f).parent), lambda f: Path(f).stem]
-    if any(Path(f).parent == Path(".") for fs in by_device.values() for f in fs):
-        keys = keys[1:]
-    for key in keys:
-        groups = _pair_up(by_device, key)
-        if groups is not None:
-            return [(sanitise(k.replace("/", "-")), groups[k]) for k in sorted(groups)]
-    counts = {d: len(fs) for d, fs in by_device.items()}
-    if len(set(counts.values())) != 1:
-        raise UsageError("the devices' files pair up neither by folder, nor by name, nor in order "
-                         f"({', '.join(f'{d}: {n} files' for d, n in counts.items())}): put each recording "
-                         "in its own folder holding one file per device (or check the --device patterns)")
-    n = next(iter(counts.values()))
-    return [(f"rec-{k + 1:02d}", {d: by_device[d][k] for d in devices}) for k in range(n)]
-
-
-@dataclass
-class _Device:
-    id: str
-    role: str
-    format: str
-    model: str
-    entry: dict[str, Any]
-    evidence: dict[str, str]
-    notes: list[str]
-
-
-def _device(dev: str, dets: list[Detection], models: dict[str, str]) -> _Device:
-    first = dets[0]
-    for d in dets[1:]:
-        if d.format != first.format:
-            raise UsageError(f"{d.path}: format {d.format}, but {first.path.name} of the same device "
-                               f"{dev} is {first.format}: give each kind of file its own --device")
-        a = first.mapping.to_dict() if first.mapping is not None else first.options
-        b = d.mapping.to_dict() if d.mapping is not None else d.options
-        if a != b:
-            key = next(k for k in list(a) + list(b) if a.get(k) != b.get(k))
-            raise UsageError(f"{d.path}: {key} {show_value(b.get(key))}, but {first.path.name} of the same "
-                               f"device {dev} has {show_value(a.get(key))}: one device's files must share a "
-                               "layout (map them to separate devices or sessions)")
-    model = models.get(dev) or first.model or "unknown"
-    evidence = {"model": "given with --model" if dev in models else (first.evidence("model") or
-                "not in the file: give --model ID=MODEL")}
-    entry: dict[str, Any] = dict(first.options)
-    if first.mapping is not None:
-        entry.update(first.mapping.to_dict())
-    same = f" (in {first.path.name}; the {len(dets)} files agree)" if len(dets) > 1 else ""
-    for d in first.decisions:
-        evidence.setdefault(d.key, d.evidence + same)
-    notes = [f"{d.key}: {show_value(d.value)} ({d.evidence})" for d in first.decisions
-             if d.key in ("trailing_delimiter", "zero", "decimal_comma")]
-    return _Device(dev, "dut", first.format, model, entry, evidence, notes)
-
-
-def _flow(value: Any) -> str:
-    text = yaml.safe_dump(value, default_flow_style=True, width=10**6, allow_unicode=True, sort_keys=False)
-    text = text.strip()
-    if text.endswith("..."):
-        text = text[:-3].strip()
-    return text
-
-
-def _line(indent: str, key: str, value: Any, why: str | None) -> str:
-    out = f"{indent}{key}: {_flow(value)}"
-    return out + f"  # {' '.join(why.split())}" if why else out
-
-
-def manifest_text(top: dict[str, Any], top_why: dict[str, str], devices: list[_Device],
-                  recordings: list[tuple[str, dict[str, str]]], file_notes: dict[str, str]) -> str:
-    """The manifest as YAML with each decision's evidence as a comment beside its key."""
-    out = ["# Written by ofbe-session init from the files in this folder. The comments give the",
-           "# evidence of each detected value; edit what is wrong, then run: ofbe-session check <folder>",
-           _line("", "format", MANIFEST_FORMAT, None)]
-    out += [_line("", k, v, top_why.get(k)) for k, v in top.items()]
-    out.append("devices:")
-    for d in devices:
-        out.append(f"  {d.id}:")
-        out += [f"    # {' '.join(n.split())}" for n in d.notes]
-        out.append(_line("    ", "model", d.model, d.evidence.get("model")))
-        out.append(_line("    ", "role", d.role, d.evidence.get("role")))
-        out.append(_line("    ", "format", d.format, d.evidence.get("format")))
-        out += [_line("    ", k, v, d.evidence.get(k)) for k, v in d.entry.items()]
-    out.append("recordings:")
-    for rid, files in recordings:
-        out.append(f"  - id: {_flow(rid)}")
-        out += [f"    # {rel}: {file_notes[rel]}" for rel in files.values() if file_notes.get(rel)]
-        out.append(_line("    ", "files", files, None))
-    return "\n".join(out) + "\n"
-
-
 def _hints(args: argparse.Namespace) -> Hints:
     return Hints(rate_hz=args.rate, acc_unit=args.unit, lsb_per_g=args.lsb_per_g,
                  zero_counts=args.zero_counts, time_unit=args.time_unit, time_column=args.time_column,
-                 columns=args.columns)
+                 columns=args.columns, gyro_unit=args.gyro_unit)
 
 
 def _site(args: argparse.Namespace) -> tuple[dict[str, float], str]:
@@ -333,14 +187,14 @@ def _site(args: argparse.Namespace) -> tuple[dict[str, float], str]:
     return {"gravity_mps2": G0}, "standard gravity: no --site or --gravity given"
 
 
-def _tilt_warning(det: Detection) -> str | None:
-    if det.direction is None or not np.any(det.direction):
+def _tilt_warning(path: Path, direction: np.ndarray | None, device: str) -> str | None:
+    if direction is None or not np.any(direction):
         return None
-    tilt = math.degrees(math.acos(min(1.0, float(np.max(np.abs(det.direction))))))
+    tilt = math.degrees(math.acos(min(1.0, float(np.max(np.abs(direction))))))
     if tilt <= MAX_LEVEL_TILT_DEG:
         return None
-    return (f"{det.path}: the mean at rest is {tilt:.1f}° from the nearest axis: not level, so a gravity-"
-            "aligned label would be rejected (--kind multi-position for several orientations)")
+    return (f"{path} ({device}): the mean at rest is {tilt:.1f}° from the nearest axis: not level, so a "
+            "gravity-aligned label would be rejected (--kind multi-position for several orientations)")
 
 
 def _init(args: argparse.Namespace) -> int:
@@ -357,7 +211,7 @@ def _init(args: argparse.Namespace) -> int:
                 raise UsageError(f"--device {dev}: expected an id of [A-Za-z0-9._-]+")
         known = [d for d, _ in args.device] or ["dut"]
         for dev, _ in args.model:
-            if dev not in known:
+            if dev not in known and not any(dev.startswith(k + "-") for k in known):
                 raise UsageError(f"--model {dev}: no such device ({', '.join(known)})")
         if args.reference and args.kind not in (None, "rotated"):
             raise UsageError(f"--reference: a {args.kind} session has no reference device")
@@ -387,16 +241,18 @@ def _init(args: argparse.Namespace) -> int:
             print(f"  {line}")
     models = dict(args.model)
     try:
-        devices = [_device(dev, [dets[f] for f in fs], models) for dev, fs in by_device.items()]
+        devices, ids = _devices(by_device, dets, models)
     except UsageError as exc:
         return fail(PROG, str(exc), EXIT_USAGE)
+    recordings = [(rid, {sub: rel for dev, rel in files_of.items() for sub in ids[dev]})
+                  for rid, files_of in recordings]
     refs = [d for d in devices if d.format in REFERENCE_FORMATS] if len(devices) > 1 else []
     ref = None
     if args.reference:
         ref = next((d for d in devices if d.id == args.reference), None)
         if ref is None:
-            return fail(PROG, f"--reference {args.reference}: no such device ({', '.join(by_device)})",
-                        EXIT_USAGE)
+            listed = ", ".join(d.id for d in devices)
+            return fail(PROG, f"--reference {args.reference}: no such device ({listed})", EXIT_USAGE)
         ref.evidence["role"] = "given with --reference"
     elif len(refs) == 1 and args.kind in (None, "rotated"):
         ref = refs[0]
@@ -415,16 +271,19 @@ def _init(args: argparse.Namespace) -> int:
                 f"{ref.id} is a reference" if ref else "no reference device (--kind to change)")
     session = sanitise(folder.resolve().name)
     campaign = sanitise(folder.resolve().parent.name)
-    trailing = re.search(r"(\d+)$", session)
-    power_cycle = (args.power_cycle if args.power_cycle is not None else
-                   int(trailing.group(1)) if trailing else 0)
-    pc_why = ("given with --power-cycle" if args.power_cycle is not None else
-              f"the number the session id {session!r} ends with" if trailing else
-              "no number in the session id: give --power-cycle N, unique per device within the campaign")
+    found: int | None = None
+    if args.power_cycle is not None:
+        power_cycle, pc_why = args.power_cycle, "given with --power-cycle"
+    else:
+        found, pc_why = power_cycle_of(session)
+        power_cycle = 1 if found is None else found
     top = {"campaign": campaign, "session": session, "kind": kind, "site": site, "power_cycle": power_cycle}
     top_why = {"campaign": f"the parent folder {folder.resolve().parent.name!r}",
                "session": f"the folder {folder.resolve().name!r}", "kind": kind_why, "site": site_why,
                "power_cycle": pc_why}
+    print("session:")
+    for key, value in top.items():
+        print(f"  {key}: {show_value(value)} ({top_why[key]})")
     notes = {rel: "; ".join(f"{k} {show_value(v)}" + (f" ({e})" if k == "rate" else "")
                             for k, v, e in ((d.key, d.value, d.evidence) for d in det.decisions)
                             if k in ("rows", "rate")) for rel, det in dets.items()}
@@ -435,7 +294,13 @@ def _init(args: argparse.Namespace) -> int:
         return fail(PROG, f"the manifest detected for {folder} does not validate: {exc}", EXIT_DATA)
     warn = [w if w.startswith(str(d.path)) else f"{d.path}: {w}" for d in dets.values() for w in d.warnings]
     if kind == "gravity-aligned":
-        warn += [w for w in (_tilt_warning(d) for d in dets.values()) if w]
+        for rel, det in dets.items():
+            dev = next(dev for dev, fs in by_device.items() if rel in fs)
+            pairs = ([(sub, p.direction) for sub, p in zip(ids[dev], det.parts, strict=True)]
+                     if det.format == "csv" else [(dev, det.direction)])
+            warn += [w for w in (_tilt_warning(det.path, direction, sub) for sub, direction in pairs) if w]
+    if args.power_cycle is None and found is None:
+        warn.append(f"power_cycle {power_cycle}: {pc_why}")
     if "gravity_mps2" in site and site_why.startswith("standard"):
         warn.append(f"g_local is standard gravity {G0} m/s² (local gravity differs by up to ±0.3 %): give "
                     "--site LAT,HEIGHT_M or --gravity G")

@@ -10,14 +10,17 @@ Every finding comes back as ``(key, value, evidence)``.
 
 from __future__ import annotations
 
+import os
 import re
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from ofbe_data.core.errors import RawFormatError
+from ofbe_data.io.detect_names import unit_of_text
 from ofbe_data.io.manifest import WHITESPACE
 
 MAX_DATA_LINES = 500_000
@@ -27,7 +30,10 @@ LAYOUT_LINES = 2000
 DELIMITERS = (",", ";", "\t", WHITESPACE)
 """Candidates, in order of preference."""
 COMMENT_PREFIXES = ("#", "//", "%")
-"""Comment prefixes looked for."""
+"""Comment prefixes looked for before the data."""
+PROMPT_CHARS = "#%/>!*$@=<|~:&?^-"
+"""Characters a comment or prompt line among the data starts with (``>>>``, ``> ``, ``#``, ``%``,
+``//``, ``--``); a lone ``-`` starts a negative number, so it must be doubled."""
 
 # --------------------------------------------------------------------------- lines and fields
 
@@ -99,6 +105,10 @@ class Layout:
         0-based index of the column line, or of the first data line without one.
     decimal_comma
         Numbers are written with a decimal comma (delimiter ``;`` or tab).
+    units
+        Per column, the unit a unit row under the column line states (``s,g,g,g``), else empty.
+    unit_row
+        0-based index of that unit row, or None.
     """
 
     delimiter: str
@@ -112,6 +122,8 @@ class Layout:
     trailing: bool
     column_line: int
     decimal_comma: bool
+    units: list[str | None] = field(default_factory=list)
+    unit_row: int | None = None
 
 
 def _comment_prefixes(lines: list[str]) -> list[str]:
@@ -192,48 +204,152 @@ def find_layout(path: Path, lines: list[str]) -> tuple[Layout, list[tuple[str, A
                   if all(is_data(body[j]) for j in range(k, min(k + 5, len(body))))), None)
     if start is None:
         raise RawFormatError(path, "a run of data lines", "none")
+    numbering = None
+    if start + 1 < len(body) and _numbers_columns(split_fields(lines[body[start]], delim), width):
+        numbering, start = body[start], start + 1
     data_start = body[start]
-    header_line = body[start - 1] if start > 0 else None
+    header_line = body[start - 1] if start > 0 and numbering is None else None
     names: list[str] = []
+    units: list[str | None] = []
+    unit_row = None
     trailing = (delim != WHITESPACE and width > 3 and
                 all(split_fields(lines[i], delim)[-1] == "" for i in body[start:start + 200]))
+
+    def fits(fields: list[str]) -> bool:
+        return len(fields) == width or (trailing and len(fields) == width - 1)
+
+    # '#timestamp [ns],w_RS_S_x [rad s^-1],…' (EuRoC, Kalibr): a commented column line, names as written
+    commented = None if numbering is not None else _commented_column_line(lines, data_start, delim, prefixes,
+                                                                           fits)
+    if commented is not None:
+        header_line = commented
     if header_line is not None:
         fields = [unquote(f) for f in split_fields(lines[header_line], delim)]
-        fits = len(fields) == width or (trailing and len(fields) == width - 1)
-        if fits and not all(is_number(f) for f in fields if f):
+        stated = unit_row_units(fields) if commented is None else None
+        if stated is not None and start > 1 and fits(fields):
+            above = [unquote(f) for f in split_fields(lines[body[start - 2]].lstrip("\ufeff"), delim)]
+            if fits(above) and len(above) == len(fields) and not any(is_number(f) for f in above if f):
+                unit_row, header_line, fields, units = header_line, body[start - 2], above, stated
+        if fits(fields) and not all(is_number(f) for f in fields if f):
             names = fields
         else:
             warnings.append(f"line {header_line + 1} ({lines[header_line].strip()[:50]!r}) is not a "
                                 f"column line of the data's {width} fields: read by position")
             header_line = None
     column_line = header_line if header_line is not None else data_start
-    after = [p for p in prefixes if any(line.startswith(p) for line in lines[column_line:])]
-    if len(after) > 1:
-        raise RawFormatError(path, "one comment prefix among the data", " and ".join(repr(p) for p in after))
-    comment = after[0] if after else None
+    comment, why, others = _prompt_prefix(lines, max(column_line, unit_row or 0, numbering or 0) + 1, delim,
+                                          is_data)
+    warnings.extend(others)
+    if comment is not None and header_line is not None and lines[header_line].startswith(comment):
+        warnings.append(f"lines among the data start with {comment!r} as the column line (line "
+                        f"{header_line + 1}) does: no comment key, the reader skips them as unreadable lines")
+        comment = None
+    if unit_row is not None:
+        shown = ", ".join(f"{n}: {u}" for n, u in zip(names, units, strict=False) if u)
+        if comment is None:
+            comment = lines[unit_row]
+            why = (f"line {unit_row + 1} under the column line states the units ({shown}); no manifest key "
+                   "skips one line after the column line, so that line itself is the comment string (lines "
+                   "starting with it are skipped)")
+        else:
+            add("unit_row", unit_row + 1, f"line {unit_row + 1} under the column line states the units "
+                                          f"({shown}); with the comment key taken by {comment!r} the reader "
+                                          "skips it as one unreadable line")
     skip = column_line
     if comment is not None and skip and all(line.startswith(comment) for line in lines[:skip]):
         skip = 0
     if comment is not None:
-        n = sum(1 for line in lines if line.startswith(comment))
-        add("comment", comment, f"{n} lines start with {comment!r}, "
-                                    f"{sum(1 for line in lines[column_line:] if line.startswith(comment))} "
-                                    f"of them among the data")
+        add("comment", comment, why)
     if skip:
         shown = ", ".join(repr(line.strip()[:30]) for line in lines[:min(skip, 3)])
-        add("skip_rows", skip, f"line{'s 1–' + str(skip) if skip > 1 else ' 1'} before the "
-                                   f"{'column line' if names else 'first data line'}: {shown}"
-                                   f"{', …' if skip > 3 else ''}")
+        what = (f"line{'s 1–' + str(skip) if skip > 1 else ' 1'} before the "
+                f"{'column line' if names else 'first data line'}: {shown}{', …' if skip > 3 else ''}")
+        if numbering is not None:
+            what += (f"; line {numbering + 1} ({lines[numbering].strip()[:40]!r}) numbers the columns, it is "
+                     "not data")
+        add("skip_rows", skip, what)
     if names:
         add("header", True, f"line {header_line + 1 if header_line is not None else 0} holds the column "
                                 f"names: {lines[column_line].strip().lstrip(chr(0xFEFF))[:70]!r}")
     else:
-        add("header", False, f"no column-name line: line {data_start + 1} is already data")
+        add("header", False, f"no column-name line: line {data_start + 1} is "
+                             + ("the first data line" if numbering is not None else "already data"))
     if trailing:
         add("trailing_delimiter", True, f"every data line ends with {delim!r}: an empty last "
                                             "column, ignored")
     return Layout(delim, width, numeric, data_start, header_line, names, comment, skip, trailing,
-                  column_line, decimal), found, warnings
+                  column_line, decimal, units, unit_row), found, warnings
+
+
+def _commented_column_line(lines: list[str], data_start: int, delim: str, prefixes: list[str],
+                           fits: Callable[[list[str]], bool]) -> int | None:
+    """The line right before the data (blank lines aside) when it starts with a comment prefix
+    and holds the data's number of distinct, non-numeric names (``#timestamp [ns],w_RS_S_x …``),
+    else None. Its first name keeps the prefix: the reader matches names as written."""
+    i = data_start - 1
+    while i >= 0 and not lines[i].strip():
+        i -= 1
+    if i < 0 or not prefixes or not lines[i].startswith(tuple(prefixes)):
+        return None
+    fields = [unquote(f) for f in split_fields(lines[i], delim)]
+    if not fits(fields) or any(is_number(f) for f in fields if f) or len(set(fields)) != len(fields):
+        return None
+    return i
+
+
+def _numbers_columns(fields: list[str], width: int) -> bool:
+    """Whether a line's fields are the column numbers 0, 1, 2… or 1, 2, 3… (a spreadsheet's or a
+    plotting tool's first line), not a sample."""
+    if len(fields) != width or width < 3 or not all(re.fullmatch(r"\d{1,3}", f) for f in fields):
+        return False
+    values = [int(f) for f in fields]
+    return values[0] in (0, 1) and values == list(range(values[0], values[0] + width))
+
+
+UNIT_PLACEHOLDERS = ("-", "--", "—", "/", "1", "n/a", "na", "#", "")
+"""Fields of a unit row that state no unit (an index column's, say)."""
+
+
+def unit_row_units(fields: list[str]) -> list[str | None] | None:
+    """The units a row of units states per column (``s,g,g,g``; ``[s];[m/s²];…``), or None when the
+    row is no unit row (a field that is neither a unit nor a placeholder, or fewer than two units)."""
+    out: list[str | None] = []
+    for f in fields:
+        text = f.strip().strip("[]()").strip()
+        unit = unit_of_text(text) if text else None
+        if unit is None and text.lower() not in UNIT_PLACEHOLDERS:
+            return None
+        out.append(unit)
+    return out if sum(u is not None for u in out) >= 2 else None
+
+
+def _prompt_prefix(lines: list[str], first: int, delim: str, is_data: Callable[[int], bool]
+                   ) -> tuple[str | None, str, list[str]]:
+    """The comment prefix of the comment or prompt lines among the data (from line ``first``,
+    0-based): the prefix the most of them share (``>>>``, ``>``, ``#``, ``%``, ``//``), its evidence,
+    and warnings for lines that start with another prefix (the reader skips them as unreadable).
+    A data line is never one of them, whatever its first character."""
+    groups: dict[str, list[int]] = {}
+    for i in range(first, len(lines)):
+        line = lines[i]
+        c = line[:1]
+        if c and c in PROMPT_CHARS and c != delim and (c != "-" or line.startswith("--")) and not is_data(i):
+            groups.setdefault(c, []).append(i)
+    if not groups:
+        return None, "", []
+    order = sorted(groups, key=lambda c: -len(groups[c]))
+    best = groups[order[0]]
+    runs = [lines[i][:len(lines[i]) - len(lines[i].lstrip(PROMPT_CHARS))] for i in best]
+    prefix = os.path.commonprefix(runs)
+    n_all = sum(1 for line in lines if line.startswith(prefix))
+    why = (f"{n_all} line{'s' if n_all != 1 else ''} start{'' if n_all != 1 else 's'} with {prefix!r}, "
+           f"{len(best)} of them among the data (e.g. line "
+           f"{best[0] + 1}: {lines[best[0]].strip()[:30]!r}): comment or prompt lines, not garbled data")
+    warnings = [f"{len(groups[c])} line{'s' if len(groups[c]) != 1 else ''} among the data start"
+                f"{'' if len(groups[c]) != 1 else 's'} with {c!r} (e.g. line {groups[c][0] + 1}: "
+                f"{lines[groups[c][0]].strip()[:30]!r}); only one comment prefix can be given, so the reader "
+                "skips them as unreadable lines" for c in order[1:]]
+    return prefix, why, warnings
 
 
 def read_numbers(lines: list[str], lay: Layout) -> tuple[np.ndarray, int, dict[int, int]]:

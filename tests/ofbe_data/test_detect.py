@@ -16,16 +16,15 @@ import numpy as np
 import pytest
 
 from ofbe_data.core.errors import RawFormatError
-from ofbe_data.io.detect import Hints, parse_name, sniff_text
-from ofbe_data.io.detect_units import (
-    DetectionError,
-    decide_acc_unit,
-    decide_time_unit,
-    offset_binary_zero,
-    preamble_rate,
-)
+from ofbe_data.io.detect import sniff_text
+from ofbe_data.io.detect_names import find_triads, parse_name
+from ofbe_data.io.detect_result import Hints
+from ofbe_data.io.detect_time import decide_time_unit, preamble_rate
+from ofbe_data.io.detect_units import DetectionError, decide_acc_unit, decide_gyro_unit, offset_binary_zero
+from ofbe_data.io.formats import read_device_file
 from ofbe_data.io.formats.mscip_bin import write_mscip_bin
 from ofbe_data.io.gravity import G0
+from ofbe_data.io.manifest import DeviceSpec
 
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLES = ROOT / "raw" / "examples"
@@ -393,7 +392,9 @@ def test_preamble_rate_lines(line: str, rate: float | None) -> None:
 @pytest.mark.parametrize(("raw", "base", "unit"), [
     ("Time (s)", "time", "s"), ("t_us", "t", "us"), ("Accel X (g)", "accel_x", "g"), ("aX", "ax", None),
     ("x (g)", "x", "g"), ("acc_x[m/s^2]", "acc_x", "m/s2"), ("timestamp_ns", "timestamp", "ns"),
-    ("millis", "millis", "ms"), ("AccZ_mg", "accz", "mg"), ("Temperature (°C)", "temperature", "C")])
+    ("millis", "millis", "ms"), ("AccZ_mg", "accz", "mg"), ("Temperature (°C)", "temperature", "C"),
+    ("accel[0]", "accel_0", None), ("gyro_x_dps", "gyro_x", "deg/s"), ("Gyro X (deg/s)", "gyro_x", "deg/s"),
+    ("w_RS_S_x [rad s^-1]", "w_rs_s_x", "rad/s"), ("gyroRotationX(rad/s)", "gyrorotationx", "rad/s")])
 def test_column_names_are_taken_apart(raw: str, base: str, unit: str | None) -> None:
     name = parse_name(raw)
     assert (name.base, name.unit) == (base, unit)
@@ -426,3 +427,123 @@ def test_acc_unit_rules() -> None:
     mid = np.rint(base * 1024) + 2048
     assert offset_binary_zero(mid, mid.mean(axis=0)) == 2048
     assert offset_binary_zero(np.rint(base * 1024), np.rint(base * 1024).mean(axis=0)) is None
+
+
+@pytest.mark.parametrize(("header", "triads"), [
+    ("TIME,ACCEL_X,ACCEL_Y,ACCEL_Z,GYRO_X,GYRO_Y,GYRO_Z", [("acc", "", 1), ("gyro", "", 4)]),
+    ("t,acc_0,acc_1,acc_2", [("acc", "", 1)]),
+    ("t,ch_1,ch_2,ch_3", [("unknown", "ch", 1)]),
+    ("t,a1x,a1y,a1z,a2x,a2y,a2z", [("acc", "1", 1), ("acc", "2", 4)]),
+    ("t,acc1_x,acc1_y,acc1_z,acc2_x,acc2_y,acc2_z,gyro1_x_dps,gyro1_y_dps,gyro1_z_dps",
+     [("acc", "1", 1), ("acc", "2", 4), ("gyro", "1", 7)]),
+    ("time,gFx,gFy,gFz,TgF", [("acc", "", 1)]),
+    ("time,seconds_elapsed,z,y,x", [("bare", "", 4)]),
+    ("t,Linear Acceleration x (m/s^2),Linear Acceleration y (m/s^2),Linear Acceleration z (m/s^2)",
+     [("linacc", "", 1)]),
+    ("#timestamp [ns],w_RS_S_x [rad s^-1],w_RS_S_y [rad s^-1],w_RS_S_z [rad s^-1],a_RS_S_x [m s^-2],"
+     "a_RS_S_y [m s^-2],a_RS_S_z [m s^-2]", [("gyro", "wrss", 1), ("acc", "arss", 4)]),
+    ("t,mag_x,mag_y,mag_z,x_accel,y_accel,z_accel", [("mag", "", 1), ("acc", "", 4)]),
+    ("t,index,max,latency", []),
+])
+def test_triads_by_name(header: str, triads: list[tuple[str, str, int]]) -> None:
+    names = [parse_name(n) for n in header.split(",")]
+    found = find_triads("f", names, list(range(len(names))))
+    assert [(tr.kind, tr.label, tr.cols["x"]) for tr in found] == triads
+
+
+def test_two_columns_for_one_axis_stop() -> None:
+    names = [parse_name(n) for n in "t,acc_x_raw,acc_y_raw,acc_z_raw,acc_x_g,acc_y_g,acc_z_g".split(",")]
+    with pytest.raises(DetectionError, match=r"^f: two columns for the acc x axis \('acc_x_raw', "
+                                             r"'acc_x_g'\): give --columns t=NAME,ax=NAME,ay=NAME,az=NAME$"):
+        find_triads("f", names, list(range(7)))
+
+
+def test_a_time_unit_the_steps_contradict() -> None:
+    n = np.arange(1000, dtype=float)
+    d = decide_time_unit("f", n * 0.01, "'t_ms'", "ms", "time")
+    assert (d.unit, d.rate_hz) == ("s", pytest.approx(100.0))
+    assert d.warning == ("the column name 't_ms' says ms, but its median step 0.01 would give 1e+05 Hz, "
+                         "outside the 0.5–20000 Hz an accelerometer logs at; in s it gives 100 Hz: read in s "
+                         "(give --time-unit ms if the name is right)")
+    assert decide_time_unit("f", n * 10.0, "'time_s'", "s", "time").unit == "ms"
+    assert decide_time_unit("f", n * 0.5, "'t_ms'", "ms", "time").warning is None  # 2 kHz: as named
+    with pytest.raises(DetectionError) as info:
+        decide_time_unit("f", n * 1e-5, "'t_ms'", "ms", "time")
+    assert str(info.value) == ("f: the column name 't_ms' says ms, but its median step 1e-05 would give "
+                               "1e+08 Hz, outside the 0.5–20000 Hz an accelerometer logs at: give "
+                               "--time-unit U (s, ms, us or ns)")
+
+
+def test_gyro_unit_rules() -> None:
+    rest = np.random.default_rng(2).normal(0, 0.01, (500, 3))
+    turn = rest.copy()
+    turn[100:150, 2] += 90.0
+    assert decide_gyro_unit(rest, "deg/s") == ("deg/s", "the column names say so")
+    assert decide_gyro_unit(rest, None, "rad/s") == ("rad/s", "given with --gyro-unit")
+    assert decide_gyro_unit(turn, None)[0] == "deg/s"
+    unit, why = decide_gyro_unit(rest, None)
+    assert unit is None and why.endswith("not mapped (give --gyro-unit rad/s or deg/s to map them)")
+    assert decide_gyro_unit(np.rint(rest * 1000) + 40, None)[0] is None  # raw counts: no key for their scale
+
+
+def _csv(tmp_path: Path, head: list[str], body: list[str], name: str = "f.csv") -> Path:
+    return _write(tmp_path, name, ("\n".join(head + body) + "\n").encode())
+
+
+def _body(n: int = 1000, sep: str = ",") -> list[str]:
+    t, acc = simulate(n)
+    return _rows([t, *_g(acc)], ["{:.2f}"] + ["{:.6f}"] * 3, sep).splitlines()
+
+
+def test_a_numbered_first_line_is_no_data(tmp_path: Path) -> None:
+    det = sniff_text(_csv(tmp_path, ["0,1,2,3"], _body()))
+    assert det.mapping is not None
+    assert (det.mapping.header, det.mapping.skip_rows, det.rows) == (False, 1, 1000)
+    assert "line 1 ('0,1,2,3') numbers the columns" in (det.evidence("skip_rows") or "")
+
+
+def test_prompt_lines_become_the_comment_prefix(tmp_path: Path) -> None:
+    body = _body()
+    for k, line in ((100, ">>> x = 1"), (300, "> "), (500, ">>> run()"), (700, "$GPGGA,1")):
+        body.insert(k, line)
+    det = sniff_text(_csv(tmp_path, ["t,ax,ay,az"], body))
+    assert det.mapping is not None and det.mapping.comment == ">"
+    assert det.evidence("comment") == ("3 lines start with '>', 3 of them among the data (e.g. line 102: "
+                                       "'>>> x = 1'): comment or prompt lines, not garbled data")
+    assert det.warnings == ["1 line among the data starts with '$' (e.g. line 702: '$GPGGA,1'); only one "
+                            "comment prefix can be given, so the reader skips them as unreadable lines"]
+
+
+def test_a_unit_row_gives_the_units_and_is_skipped_as_a_comment(tmp_path: Path) -> None:
+    t, acc = simulate(1000)
+    body = _rows([t * 1000, *(acc.T / G0 * 1000)], ["{:.1f}"] + ["{:.2f}"] * 3, ";").splitlines()
+    det = sniff_text(_csv(tmp_path, ["Time;X;Y;Z", "ms;mg;mg;mg"], body))
+    assert det.mapping is not None
+    got = det.mapping.to_dict()
+    assert (got["comment"], got["time_unit"], got["acc_unit"]) == ("ms;mg;mg;mg", "ms", "mg")
+    assert got["columns"] == {"t": "Time", "ax": "X", "ay": "Y", "az": "Z"}
+    assert (det.evidence("acc_unit") or "").startswith("the unit row (line 2) says so")
+    assert "no manifest key skips one line after the column line" in (det.evidence("comment") or "")
+
+
+def test_two_triads_give_two_parts(tmp_path: Path) -> None:
+    t, acc = simulate(1000)
+    body = _rows([t, *_g(acc), *acc.T], ["{:.2f}"] + ["{:.6f}"] * 3 + ["{:.5f}"] * 3, ";").splitlines()
+    det = sniff_text(_csv(tmp_path, ["t;acc1_x;acc1_y;acc1_z;acc2_x;acc2_y;acc2_z"], body))
+    assert [(p.label, p.mapping.columns["ax"], p.mapping.acc_unit) for p in det.parts] == [
+        ("1", "acc1_x", "g"), ("2", "acc2_x", "m/s2")]
+    assert [line.split(": ")[0] for line in det.lines() if line.startswith("acc_unit")] == [
+        "acc_unit [1]", "acc_unit [2]"]
+
+
+def test_the_rate_is_the_one_check_reports(tmp_path: Path) -> None:
+    """Host-clock stamps with jitter and two gaps: 1 / median step and the mean rate (what check
+    reports: samples and missing samples over the span) differ; init reports check's, and says so."""
+    path = _write(tmp_path, "h.csv", host_clock(*simulate(8000)))
+    det = sniff_text(path)
+    assert det.mapping is not None
+    rec = read_device_file(path, DeviceSpec("d", "x", "dut", "csv", csv=det.mapping))
+    assert det.rate_hz == rec.fs_hz == pytest.approx(99.9907, abs=1e-4)
+    assert (det.evidence("rate") or "").startswith(f"the mean rate, as check reports it: (8000 samples − 1 "
+                                                   f"+ {rec.diagnostics.missing_samples} missing in gaps) / ")
+    assert "; median step 0.01 s → 99.969 Hz; jitter 12 %" in (det.evidence("rate") or "")

@@ -12,12 +12,14 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 
 from ofbe_data.cli.session import main
 from ofbe_data.io.formats import read_device_file
 from ofbe_data.io.formats.mscip_bin import write_mscip_bin
+from ofbe_data.io.gravity import G0
 from ofbe_data.io.manifest import load_manifest
 from tests.ofbe_data.test_detect import LAYOUTS, quoted_units, sample_index, simulate
 
@@ -249,3 +251,41 @@ def test_console_script_help() -> None:
     for flag in ("--kind", "--device", "--rate", "--unit", "--lsb-per-g", "--zero-counts", "--site",
                  "--gravity", "--force", "--time-column", "--columns", "--reference", "--time-unit"):
         assert flag in done.stdout
+
+
+def _two_triads(t: np.ndarray, acc: np.ndarray) -> bytes:
+    """One file, two accelerometers (``a1`` in g, ``a2`` in m/s²), semicolons."""
+    cols = [t, *(acc.T / G0), *acc.T]
+    rows = "".join(";".join(f"{c[i]:.6f}" for c in cols) + "\n" for i in range(t.size))
+    return ("t;a1x;a1y;a1z;a2x;a2y;a2z\n" + rows).encode()
+
+
+def test_two_triads_in_one_file_become_two_devices_that_label(tmp_path: Path,
+                                                               capsys: pytest.CaptureFixture[str]) -> None:
+    folder = _session(tmp_path, _two_triads)
+    assert main(["init", str(folder), "--model", "dut=ADXL355"]) == 0
+    out = capsys.readouterr().out
+    assert "columns [1]: {t: t, ax: a1x, ay: a1y, az: a1z}" in out and "acc_unit [2]: m/s2" in out
+    m = load_manifest(folder)
+    assert {d.id: (d.model, d.csv.acc_unit if d.csv else None) for d in m.devices.values()} == {
+        "dut-1": ("ADXL355", "g"), "dut-2": ("ADXL355", "m/s2")}
+    assert [r.files for r in m.recordings] == [{"dut-1": "rec 01.csv", "dut-2": "rec 01.csv"},
+                                               {"dut-1": "rec 02.csv", "dut-2": "rec 02.csv"}]
+    text = (folder / "session.yaml").read_text(encoding="utf-8")
+    assert "# one of 2 accelerometer triads in each file: reads the same file as dut-2, its own ax" in text
+    assert main(["check", str(folder)]) == 0
+    assert "would label 4 of 4" in capsys.readouterr().out
+
+
+def test_gyroscope_columns_given_need_their_unit(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    folder = _session(tmp_path, lambda t, acc: _two_triads(t, acc).replace(b"a2x;a2y;a2z", b"wx;wy;wz"),
+                      files=1)
+    cols = "t=t,ax=a1x,ay=a1y,az=a1z,gx=wx,gy=wy,gz=wz"
+    assert main(["init", str(folder), "--columns", cols]) == 2
+    line = _one_error(capsys.readouterr().err)
+    assert line.startswith(f"ofbe-session: error: {folder / 'rec 01.csv'}: the angular-rate columns given "
+                           "with --columns: no unit in the names and the values (peak |ω| ")
+    assert line.endswith("give --gyro-unit rad/s or deg/s")
+    assert main(["init", str(folder), "--columns", cols, "--gyro-unit", "deg/s"]) == 0
+    spec = load_manifest(folder).devices["dut"].csv
+    assert spec is not None and spec.gyro_unit == "deg/s" and spec.columns["gz"] == "wz"
