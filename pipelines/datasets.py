@@ -7,9 +7,14 @@ processes, an optional ``scheduler``) from params.yaml; all logic lives in :mod:
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 from ofbe_data.cli.dataset import main as dataset_main
+from ofbe_data.core.checksums import write_sha256_list
 from ofbe_data.io.pipeline_params import load_params, resolved_params_file, timed
+
+CHECKSUMS = Path("checksums") / "datasets.sha256"
+"""Per-file SHA-256 list of processed/datasets (committed beside dvc.lock)."""
 
 
 def main(params_file: str = "params.yaml") -> int:
@@ -22,7 +27,9 @@ def main(params_file: str = "params.yaml") -> int:
                                  str(run.get("scheduler", "processes")), "--force"])
             if code:
                 return code
+    write_sha256_list(CHECKSUMS, [f"processed/datasets/{name}" for name in run["campaigns"]])
     return 0
+
 
 
 if __name__ == "__main__":

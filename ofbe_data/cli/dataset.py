@@ -33,7 +33,8 @@ PROG = "ofbe-dataset"
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="ofbe-dataset",
                                 description="Windowed datasets with leakage-free folds, as HDF5 + Parquet "
-                                            "with a Frictionless data package, a card and checksums.")
+                                            "with a Frictionless data package, a Croissant description, a "
+                                            "card (Hugging Face configs, one per protocol) and checksums.")
     sub = p.add_subparsers(dest="command", required=True)
     b = sub.add_parser("build", help="cut a labelled campaign into windows and assign folds")
     b.add_argument("labels", help="the campaign's label folder (processed/labels/<campaign>)")

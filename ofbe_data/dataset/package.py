@@ -1,6 +1,13 @@
 """The files that make a dataset folder a shareable package: Frictionless datapackage.json, the
-dataset card, CITATION.cff, SHA256SUMS. A sharded dataset gets one resource, one card row and one
-checksum per shard file.
+Croissant croissant.json, the dataset card (with its Hugging Face front matter), CITATION.cff,
+SHA256SUMS. A sharded dataset gets one resource, one card row and one checksum per shard file
+(HDF5 and signal Parquet).
+
+``datapackage.json`` is valid for frictionless-py's own validator: the HDF5 and signal Parquet
+files are plain file resources (``"type": "file"``, checked by size and SHA-256), and
+``windows.parquet`` is a tabular resource with its schema (checked row by row) and no ``bytes``:
+frictionless reads Parquet through pyarrow, counts no bytes, and would report any declared
+``bytes`` as a byte-count error. Its SHA-256 stays in ``hash`` and in ``SHA256SUMS``.
 """
 
 from __future__ import annotations
@@ -13,12 +20,15 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+import pyarrow as pa
 import pyarrow.parquet as pq
 import yaml
 
 from ofbe_data.core.atomic import write_bytes_atomic
+from ofbe_data.dataset.croissant import croissant_document
 from ofbe_data.dataset.store import (
     CITATION_NAME,
+    CROISSANT_NAME,
     DATAPACKAGE_NAME,
     FRAME,
     H5_NAME,
@@ -28,8 +38,11 @@ from ofbe_data.dataset.store import (
     README_NAME,
     RECORDING_KEY,
     SCHEMA_VERSION,
+    SHARD_COLUMNS,
+    SIGNAL_COLUMN,
     SUMS_NAME,
     UNITS,
+    DatasetError,
     DatasetInfo,
     _all_columns,
     _check_info_matches,
@@ -38,9 +51,12 @@ from ofbe_data.dataset.store import (
     _json_bytes,
     _read_h5_header,
     _read_parquet_provenance,
+    _same_signal_schema,
+    _signal_schema,
     fold_column,
     sha256_file,
     shard_layout,
+    signal_names,
 )
 
 # ---------------------------------------------------------------------------------------------
@@ -133,7 +149,8 @@ def _h5_resources(info: DatasetInfo, files: Mapping[str, tuple[int, str]],
     t = info.window_length
     if layout is None:
         h5_bytes, h5_hash = files[H5_NAME]
-        return [{"name": "windows-h5", "path": H5_NAME, "profile": "data-resource", "format": "hdf5",
+        return [{"name": "windows-h5", "path": H5_NAME, "profile": "data-resource", "type": "file",
+                 "format": "hdf5",
                  "mediatype": "application/x-hdf5", "bytes": h5_bytes, "hash": f"sha256:{h5_hash}",
                  "description": f"X float32 (N, {t}, 3) {UNITS}, sensor frame, one gzip+shuffle+fletcher32 "
                                 f"chunk per window; y float64 (N, 3) {UNITS}; meta/ one dataset per column "
@@ -141,7 +158,7 @@ def _h5_resources(info: DatasetInfo, files: Mapping[str, tuple[int, str]],
     out, first = [], 0
     for i, (name, n) in enumerate(layout):
         size, digest = files[name]
-        out.append({"name": name.replace(".", "-"), "path": name, "profile": "data-resource",
+        out.append({"name": name.replace(".", "-"), "path": name, "profile": "data-resource", "type": "file",
                     "format": "hdf5",
                     "mediatype": "application/x-hdf5", "bytes": size, "hash": f"sha256:{digest}",
                     "description": f"shard {i} of {len(layout)}: windows {first}..{first + n - 1} "
@@ -152,10 +169,31 @@ def _h5_resources(info: DatasetInfo, files: Mapping[str, tuple[int, str]],
     return out
 
 
+def _signal_resources(info: DatasetInfo, files: Mapping[str, tuple[int, str]], signals: Sequence[str] | None,
+                      layout: list[tuple[str, int]] | None) -> list[dict[str, Any]]:
+    """The Frictionless resources of the signal Parquet files: plain files (size and SHA-256), since a
+    (T, 3) array per cell is no tabular type."""
+    t = info.window_length
+    out = []
+    for i, name in enumerate(signals or ()):
+        size, digest = files[name]
+        rows = "the rows of windows.parquet" if layout is None else (
+            f"the rows of windows.parquet with shard = {i} (windows of {layout[i][0]})")
+        out.append({"name": name.replace(".", "-"), "path": name, "profile": "data-resource", "type": "file",
+                    "format": "parquet", "mediatype": "application/vnd.apache.parquet", "bytes": size,
+                    "hash": f"sha256:{digest}",
+                    "description": f"{rows}, same columns and order, plus {SIGNAL_COLUMN}: the window, "
+                                   f"fixed-size list of {t} fixed-size lists of 3 float32, {UNITS}, sensor "
+                                   "frame, equal to the HDF5 X; what the card's Hugging Face configs and "
+                                   "croissant.json's record set 'signals' read"})
+    return out
+
+
 def _datapackage(info: DatasetInfo, attrs: Mapping[str, Any], meta: pd.DataFrame,
                  files: Mapping[str, tuple[int, str]], sizes: Mapping[str, Any],
-                 layout: list[tuple[str, int]] | None = None) -> dict[str, Any]:
-    pq_bytes, pq_hash = files[PARQUET_NAME]
+                 layout: list[tuple[str, int]] | None = None,
+                 signals: Sequence[str] | None = None) -> dict[str, Any]:
+    _, pq_hash = files[PARQUET_NAME]
     t = info.window_length
     protocols = {p: {**spec, "fold_column": fold_column(p), "fold_sizes": sizes.get(p)}
                  for p, spec in info.protocols.items()}
@@ -173,12 +211,13 @@ def _datapackage(info: DatasetInfo, attrs: Mapping[str, Any], meta: pd.DataFrame
         "resources": [
             *_h5_resources(info, files, layout),
             {"name": "windows", "path": PARQUET_NAME, "profile": "tabular-data-resource", "format": "parquet",
-             "mediatype": "application/vnd.apache.parquet", "bytes": pq_bytes, "hash": f"sha256:{pq_hash}",
+             "mediatype": "application/vnd.apache.parquet", "hash": f"sha256:{pq_hash}",
              "description": ("one row per window, same order as windows.h5" if not sharded else
                              "the index: one row per window, in window_id order, with its shard file and "
                              "row there (shard, shard_row)"),
              "schema": {"fields": [_field_entry(c) for c in _all_columns(list(info.protocols), sharded)],
                         "primaryKey": "window_id"}},
+            *_signal_resources(info, files, signals, layout),
         ],
         "ofbe": {
             "schema_version": SCHEMA_VERSION, "name": info.name, "campaign": info.campaign, "kind": info.kind,
@@ -236,10 +275,61 @@ HF_SIZE_CATEGORIES = ((1_000, "n<1K"), (10_000, "1K<n<10K"), (100_000, "10K<n<10
                       (1_000_000, "100K<n<1M"), (10_000_000, "1M<n<10M"))
 
 
-def hf_front_matter(info: DatasetInfo, n_windows: int) -> str:
+_HF_DTYPES = {"string": "string", "int": "int64", "float": "float64"}
+
+
+def hf_configs(info: DatasetInfo, signals: Sequence[str]) -> list[dict[str, Any]]:
+    """The Hugging Face ``configs`` of the card: one per protocol, named after it.
+
+    Each reads every signal file (one ``train`` split: every window; the folds are a column, not
+    splits, because a fold's training set is every other fold plus the −1 rows) and keeps the
+    columns of ``windows.parquet`` less the index columns ``shard``/``shard_row`` and the other
+    protocols' fold columns, plus ``X``. ``features`` spell out every type, ``X`` as an
+    ``Array2D`` of shape (T, 3), float32, so ``datasets`` gives each window back as a (T, 3) array
+    (numpy format) without inferring anything. The first protocol's config is the default; a
+    dataset without protocols gets one ``default`` config with every column.
+
+    Parameters
+    ----------
+    info
+        The dataset description (window length, protocols in order).
+    signals
+        The signal Parquet files, in window order.
+
+    Returns
+    -------
+    list of dict
+        The ``configs`` entries, ready for YAML.
+    """
+    protocols = list(info.protocols)
+    columns = [c for c in _all_columns(protocols) if c.name not in SHARD_COLUMNS]
+    out: list[dict[str, Any]] = []
+    for proto in protocols or [None]:  # fresh objects for each config: YAML would alias shared ones
+        signal = {"name": SIGNAL_COLUMN,
+                  "dtype": {"array2_d": {"shape": [info.window_length, 3], "dtype": "float32"}}}
+        keep = [c for c in columns if not c.name.startswith("fold_") or proto is None
+                or c.name == fold_column(proto)]
+        config: dict[str, Any] = {
+            "config_name": proto or "default",
+            "data_files": [{"split": "train", "path": list(signals)}],
+            "columns": [*(c.name for c in keep), SIGNAL_COLUMN],
+            "features": [*({"name": c.name, "dtype": _HF_DTYPES[c.kind]} for c in keep), signal],
+        }
+        if not out:
+            config["default"] = True
+        out.append(config)
+    return out
+
+
+def hf_front_matter(info: DatasetInfo, n_windows: int, signals: Sequence[str] | None = None) -> str:
     """The card's YAML front matter in the Hugging Face dataset-card convention: licence, task,
-    size category, pretty name and a ``default`` config whose ``train`` split is the window table
-    (``windows.parquet``: metadata, labels and folds; the windows themselves are in HDF5)."""
+    size category, pretty name and, when the folder has signal Parquet files, the ``configs``
+    that read them (:func:`hf_configs`: one per protocol, windows with their samples).
+
+    A folder without signal files gets no ``configs``: the only Parquet file there,
+    ``windows.parquet``, holds no samples, and a config on it would load windows without their
+    signals.
+    """
     hf = HF_LICENCES.get(info.licence)
     meta: dict[str, Any] = {"license": hf or "other"}
     if hf is None:
@@ -249,14 +339,15 @@ def hf_front_matter(info: DatasetInfo, n_windows: int) -> str:
         "task_categories": ["tabular-regression"],
         "tags": ["accelerometer", "imu", "sensor-calibration", "bias-estimation", "time-series"],
         "size_categories": [next((c for limit, c in HF_SIZE_CATEGORIES if n_windows < limit), "n>10M")],
-        "configs": [{"config_name": "default", "data_files": [{"split": "train", "path": PARQUET_NAME}]}],
     })
+    if signals:
+        meta["configs"] = hf_configs(info, signals)
     return "---\n" + yaml.safe_dump(meta, sort_keys=False, allow_unicode=True, width=1000) + "---\n\n"
 
 
 def _readme(info: DatasetInfo, attrs: Mapping[str, Any], meta: pd.DataFrame,
             files: Mapping[str, tuple[int, str]], sizes: Mapping[str, Any],
-            layout: list[tuple[str, int]] | None = None) -> str:
+            layout: list[tuple[str, int]] | None = None, signals: Sequence[str] | None = None) -> str:
     t, s, fs = info.window_length, info.stride, info.fs_hz
     n = len(meta)
     n_rec = len(meta[list(RECORDING_KEY)].drop_duplicates())
@@ -327,12 +418,22 @@ def _readme(info: DatasetInfo, attrs: Mapping[str, Any], meta: pd.DataFrame,
             h5_rows.append([name, files[name][0], f"`{files[name][1]}`",
                             f"windows {first}–{first + k - 1}: `X` ({k}, {t}, 3), `y`, `meta/`"])
             first += k
+    signal_rows, first = [], 0
+    for i, name in enumerate(signals or ()):
+        k = len(meta) if layout is None else layout[i][1]
+        where_rows = "every row" if layout is None else f"windows {first}–{first + k - 1}"
+        signal_rows.append([name, files[name][0], f"`{files[name][1]}`",
+                            f"{where_rows} of `{PARQUET_NAME}` plus `{SIGNAL_COLUMN}`: the window, "
+                            f"({t}, 3) float32 (Hugging Face, Croissant, any Parquet reader)"])
+        first += k
     out += _md_table(["file", "bytes", "sha256", "content"],
                      [*h5_rows,
                       [PARQUET_NAME, files[PARQUET_NAME][0], f"`{files[PARQUET_NAME][1]}`",
                        "one row per window (same order)" if layout is None else
                        "the index: one row per window, with its `shard` and `shard_row`"],
+                      *signal_rows,
                       [DATAPACKAGE_NAME, "", "", "Frictionless Data Package description"],
+                      [CROISSANT_NAME, "", "", "MLCommons Croissant 1.1 description"],
                       [README_NAME, "", "", "this card"],
                       [CITATION_NAME, "", "", "how to cite"],
                       [SUMS_NAME, "", "", "SHA-256 of every other file (`sha256sum -c SHA256SUMS`)"]])
@@ -357,6 +458,20 @@ def _readme(info: DatasetInfo, attrs: Mapping[str, Any], meta: pd.DataFrame,
         out += ["`ds.X` reads every shard on first use; `for X, y, meta in ds.iter_shards():` holds one "
                 "shard at a time. Without the toolkit: `h5py.File(\"windows-00000.h5\")[\"X\"]`, … and "
                 "`pyarrow.parquet.read_table(\"windows.parquet\")` (columns `shard`, `shard_row`).", ""]
+    if signals:
+        first_proto = next(iter(info.protocols), "default")
+        out += ["With Hugging Face `datasets` (offline, from this folder): one config per protocol "
+                f"({', '.join(f'`{p}`' for p in info.protocols) or '`default`'}; `{first_proto}` is the "
+                "default), one `train` split holding every window with its samples, its label, its "
+                "metadata and the fold column of that protocol:", "",
+                "```python", "import datasets", "",
+                f'ds = datasets.load_dataset("{where}", "{first_proto}", split="train").with_format("numpy")',
+                f'ds[0]["{SIGNAL_COLUMN}"]   # float32 ({t}, 3), {UNITS}',
+                *([f'folds = ds["{fold_column(first_proto)}"]   # fold k: tests on its window-0s, trains on '
+                   "fold != k"] if info.protocols else []),
+                "```", "",
+                f"With MLCommons Croissant: `mlcroissant.Dataset(jsonld=\"{CROISSANT_NAME}\")`, record sets "
+                f"`windows` (labels, metadata, folds) and `signals` (the same plus `{SIGNAL_COLUMN}`).", ""]
     if info.extra:
         out += ["## Other properties", ""]
         out += _md_table(["property", "value"], [[k, v] for k, v in info.extra.items()]) + [""]
@@ -391,13 +506,40 @@ def _sums_text(folder: Path) -> str:
     return "".join(f"{sha256_file(folder / n)}  {n}\n" for n in names)
 
 
+def _present_signals(folder: Path, layout: list[tuple[str, int]] | None,
+                     info: DatasetInfo) -> list[str] | None:
+    """The folder's signal Parquet files (all of them, schemas checked), or ``None`` when it has none."""
+    names = signal_names(layout)
+    present = [n for n in names if (folder / n).is_file()]
+    if not present:
+        return None
+    if len(present) != len(names):
+        missing = next(n for n in names if n not in present)
+        raise DatasetError(folder / missing, f"a signal file like the others ({', '.join(present)})",
+                           "no such file")
+    expected = _signal_schema(list(info.protocols), info.window_length, layout is not None)
+    for name in names:
+        try:
+            schema = pq.read_schema(folder / name)
+        except (OSError, pa.ArrowException) as exc:
+            raise DatasetError(folder / name, "a Parquet file", f"an unreadable one ({exc})") from exc
+        if not _same_signal_schema(schema, expected, info.window_length):
+            raise DatasetError(folder / name, f"the columns {[f'{f.name}:{f.type}' for f in expected]}",
+                               f"{[f'{f.name}:{f.type}' for f in schema]}")
+    return names
+
+
 def write_package_files(folder: str | Path, info: DatasetInfo) -> None:
-    """Write ``datapackage.json``, ``README.md``, ``CITATION.cff`` and, last, ``SHA256SUMS``.
+    """Write ``datapackage.json``, ``croissant.json``, ``README.md``, ``CITATION.cff`` and, last,
+    ``SHA256SUMS``.
 
     Parameters
     ----------
     folder
-        Folder that already holds ``windows.h5`` (or the shard files) and ``windows.parquet``.
+        Folder that already holds ``windows.h5`` (or the shard files), ``windows.parquet`` and,
+        normally, the signal Parquet file(s) (:func:`~ofbe_data.dataset.signals.write_signal_files`).
+        Without signal files the card has no Hugging Face ``configs`` and ``croissant.json`` no
+        ``signals`` record set.
     info
         Dataset description; its structural fields (name, campaign, kind, windowing, protocols)
         must agree with ``windows.h5``'s attributes.
@@ -405,7 +547,8 @@ def write_package_files(folder: str | Path, info: DatasetInfo) -> None:
     Raises
     ------
     DatasetError
-        When a data file is missing or unreadable, or disagrees with ``info``.
+        When a data file is missing or unreadable, or disagrees with ``info``; or when only some of
+        the signal files are there, or one has other columns than ``windows.parquet`` plus ``X``.
     """
     folder = Path(folder)
     pq_path = folder / PARQUET_NAME
@@ -416,11 +559,17 @@ def write_package_files(folder: str | Path, info: DatasetInfo) -> None:
     _check_info_matches(info, attrs, h5_path)
     _check_version(pq_path, _read_parquet_provenance(pq_path).get("schema_version"))
     meta = pq.read_table(pq_path).replace_schema_metadata(None).to_pandas()
-    files = {n: ((folder / n).stat().st_size, sha256_file(folder / n)) for n in (*h5_names, PARQUET_NAME)}
+    signals = _present_signals(folder, layout, info)
+    files = {n: ((folder / n).stat().st_size, sha256_file(folder / n))
+             for n in (*h5_names, PARQUET_NAME, *(signals or ()))}
     sizes = fold_sizes(meta)
     write_bytes_atomic(folder / DATAPACKAGE_NAME,
-                       _json_bytes(_datapackage(info, attrs, meta, files, sizes, layout)))
-    card = hf_front_matter(info, len(meta)) + _readme(info, attrs, meta, files, sizes, layout)
+                       _json_bytes(_datapackage(info, attrs, meta, files, sizes, layout, signals)))
+    urls = {k: url for k, (_, url) in _LICENCES.items()}
+    write_bytes_atomic(folder / CROISSANT_NAME,
+                       _json_bytes(croissant_document(info, files, layout, signals, urls)))
+    card = (hf_front_matter(info, len(meta), signals)
+            + _readme(info, attrs, meta, files, sizes, layout, signals))
     write_bytes_atomic(folder / README_NAME, card.encode())
     write_bytes_atomic(folder / CITATION_NAME,
                        yaml.safe_dump(_citation(info), sort_keys=False, allow_unicode=True).encode())

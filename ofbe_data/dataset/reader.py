@@ -22,6 +22,7 @@ import pyarrow.parquet as pq
 from ofbe_data.dataset.store import (
     _SUMS_LINE_RE,
     _TF_BLOCK,
+    CROISSANT_NAME,
     DATAPACKAGE_NAME,
     H5_NAME,
     PARQUET_NAME,
@@ -29,6 +30,8 @@ from ofbe_data.dataset.store import (
     SCHEMA_VERSION,
     SHARD_COLUMNS,
     SHARD_RE,
+    SIGNAL_COLUMN,
+    SIGNALS_RE,
     SUMS_NAME,
     ChecksumError,
     DatasetError,
@@ -37,10 +40,13 @@ from ofbe_data.dataset.store import (
     _read_h5_header,
     _read_json,
     _read_parquet_provenance,
+    _same_signal_schema,
+    _signal_schema,
     read_dataset_info,
     sha256_file,
     shard_layout,
     shard_name,
+    signal_names,
 )
 
 # ---------------------------------------------------------------------------------------------
@@ -68,7 +74,17 @@ def _read_sums(path: Path) -> dict[str, str]:
     for required in (*h5_names, PARQUET_NAME, DATAPACKAGE_NAME):
         if required not in sums:
             raise DatasetError(path, f"a line for {required}", "none")
+    listed = sorted(n for n in sums if SIGNALS_RE.match(n))
+    expected = signal_names(None if h5_names == [H5_NAME] else [(n, 0) for n in h5_names])
+    if listed and listed != expected:
+        raise DatasetError(path, f"lines for the signal files {', '.join(expected)} (one per HDF5 file) "
+                           "or none", ", ".join(listed))
     return sums
+
+
+def _signals_of(sums: dict[str, str]) -> list[str]:
+    """The signal Parquet files a checked SHA256SUMS lists, in window order (none for older folders)."""
+    return sorted(n for n in sums if SIGNALS_RE.match(n))
 
 
 def _h5_names_of(sums: dict[str, str]) -> list[str]:
@@ -119,6 +135,50 @@ def _compare_meta(h5_path: Path, pq_path: Path, table: pa.Table, protocols: Sequ
 
 
 _SHARD_ATTRS = ("shard", "shard_windows", "first_window_id")
+
+
+def _check_signals(folder: Path, names: Sequence[str], counts: Sequence[int], table: pa.Table,
+                   protocols: Sequence[str], t: int, sharded: bool) -> None:
+    """Each signal file: its schema (``windows.parquet``'s columns plus X, (T, 3) float32), its row
+    count (its HDF5 file's windows) and every column but X equal to its rows of the index. X itself
+    is covered by the checksums: reading it would read every sample."""
+    schema = _signal_schema(protocols, t, sharded)
+    columns = [c for c in schema.names if c != SIGNAL_COLUMN]
+    first = 0
+    for name, n in zip(names, counts, strict=True):
+        path = folder / name
+        try:
+            pf = pq.ParquetFile(path)
+            found = pf.schema_arrow
+            same = _same_signal_schema(found, schema, t)
+            rows = pf.read(columns=columns).replace_schema_metadata(None) if same else None
+        except (OSError, pa.ArrowException) as exc:
+            raise DatasetError(path, "a readable Parquet file", f"an unreadable one ({exc})") from exc
+        if rows is None:
+            raise DatasetError(path, f"the columns {[f'{f.name}:{f.type}' for f in schema]}",
+                               f"{[f'{f.name}:{f.type}' for f in found]}")
+        if rows.num_rows != n:
+            raise DatasetError(path, f"{n} rows (the windows of its HDF5 file)", f"{rows.num_rows}")
+        if not rows.equals(table.slice(first, n).select(columns)):
+            raise DatasetError(path, f"the columns of {PARQUET_NAME} equal to its rows "
+                               f"{first}..{first + n - 1}", "different values")
+        first += n
+
+
+def _check_croissant(folder: Path, actual: dict[str, str]) -> None:
+    """Every file croissant.json names with a sha256 has that hash."""
+    path = folder / CROISSANT_NAME
+    doc = _read_json(path)
+    for entry in doc.get("distribution", []):
+        if not isinstance(entry, dict) or "sha256" not in entry:
+            continue
+        name = entry.get("contentUrl")
+        if name not in actual:
+            raise DatasetError(path, f"contentUrl one of the files of {SUMS_NAME}", repr(name),
+                               "distribution")
+        if entry["sha256"] != actual[name]:
+            raise ChecksumError(folder / name, f"sha256 {entry['sha256']} (from {CROISSANT_NAME})",
+                                f"sha256 {actual[name]}")
 
 
 def _check_shards(folder: Path, h5_names: Sequence[str], prov: dict[str, Any], table: pa.Table,
@@ -172,8 +232,12 @@ def verify_dataset(path: str | Path) -> dict[str, Any]:
     shard of a sharded dataset), ``windows.parquet`` and ``datapackage.json``; the dataset
     description against the HDF5 attributes; shapes and dtypes of ``X`` and ``y``; the Parquet
     schema; and ``meta/`` and ``y`` against the Parquet columns, row by row (each shard against
-    its rows of the index). ``X`` itself is covered by the checksum (and by its chunks'
-    Fletcher-32 sums when read).
+    its rows of the index). The signal Parquet files, when ``SHA256SUMS`` lists them (it must
+    list all or none): their schema, row counts and every column but ``X`` against their rows of
+    ``windows.parquet``; and the sha256 of every file ``croissant.json`` names. ``X`` itself, in
+    HDF5 and in Parquet, is covered by the checksums (and by the HDF5 chunks' Fletcher-32 sums
+    when read). Folders written before the signal files and ``croissant.json`` existed verify
+    without them.
 
     Returns
     -------
@@ -203,11 +267,12 @@ def verify_dataset(path: str | Path) -> dict[str, Any]:
         if actual[name] != expected:
             raise ChecksumError(file, f"sha256 {expected} (from {SUMS_NAME})", f"sha256 {actual[name]}")
     h5_names = _h5_names_of(sums)
+    signals = _signals_of(sums)
     sharded = h5_names != [H5_NAME]
     dp_path, h5_path, pq_path = folder / DATAPACKAGE_NAME, folder / h5_names[0], folder / PARQUET_NAME
     doc = _read_json(dp_path)
     resources = {r.get("path"): r for r in doc.get("resources", []) if isinstance(r, dict)}
-    for name in (*h5_names, PARQUET_NAME):
+    for name in (*h5_names, PARQUET_NAME, *signals):
         res = resources.get(name)
         if res is None:
             raise DatasetError(dp_path, f"a resource with path {name!r}", "none", "resources")
@@ -215,6 +280,9 @@ def verify_dataset(path: str | Path) -> dict[str, Any]:
             raise ChecksumError(folder / name, f"{res.get('hash')} (from {DATAPACKAGE_NAME})",
                                 f"sha256:{actual[name]}")
         size = (folder / name).stat().st_size
+        # the tabular windows.parquet has no bytes since frictionless cannot count them (package.py)
+        if name == PARQUET_NAME and "bytes" not in res:
+            continue
         if res.get("bytes") != size:
             raise DatasetError(dp_path, f"bytes = {size} (the size of {name})", repr(res.get("bytes")),
                                f"resources[{name}].bytes")
@@ -231,7 +299,8 @@ def verify_dataset(path: str | Path) -> dict[str, Any]:
     t = info.window_length
     table = pq.read_table(pq_path)
     if sharded:
-        n = sum(_check_shards(folder, h5_names, prov, table, attrs, list(info.protocols), t))
+        counts = _check_shards(folder, h5_names, prov, table, attrs, list(info.protocols), t)
+        n = sum(counts)
         if table.num_rows != n:
             raise DatasetError(pq_path, f"{n} rows (one per window of the shards)", f"{table.num_rows}")
     else:
@@ -244,6 +313,12 @@ def verify_dataset(path: str | Path) -> dict[str, Any]:
         if table.num_rows != n:
             raise DatasetError(pq_path, f"{n} rows (one per window of {H5_NAME})", f"{table.num_rows}")
         _compare_meta(h5_path, pq_path, table, list(info.protocols))
+        counts = [n]
+    if signals:
+        _check_signals(folder, signals, counts, table.replace_schema_metadata(None), list(info.protocols), t,
+                       sharded)
+    if CROISSANT_NAME in sums:
+        _check_croissant(folder, actual)
     if not np.array_equal(table.column("window_id").to_numpy(), np.arange(n)):
         raise DatasetError(pq_path, "window_id = 0..N-1 in order", "other values", "window_id")
     keys = table.select(list(RECORDING_KEY)).to_pandas().drop_duplicates()

@@ -10,8 +10,12 @@ A dataset folder ``processed/datasets/<name>/`` holds
 ``windows.parquet``
     One row per window, columns :data:`WINDOW_COLUMNS` then one ``fold_<protocol>`` column
     per protocol; JSON provenance under the schema metadata key ``ofbe``.
-``datapackage.json``, ``README.md``, ``CITATION.cff``
-    Frictionless Data Package, dataset card and citation file.
+``signals.parquet``
+    The rows of ``windows.parquet`` plus ``X`` (:data:`SIGNAL_COLUMN`), the window as a (T, 3)
+    float32 array equal to the HDF5 ``X``: what Hugging Face and Croissant read
+    (:mod:`~ofbe_data.dataset.signals`); the toolkit itself reads the HDF5 file.
+``datapackage.json``, ``croissant.json``, ``README.md``, ``CITATION.cff``
+    Frictionless Data Package, MLCommons Croissant description, dataset card and citation file.
 ``SHA256SUMS``
     ``sha256sum`` lines for every other file, written last.
 
@@ -22,8 +26,13 @@ builder is told otherwise) is *sharded*: instead of ``windows.h5`` it holds
 root attributes ``shard``, ``shard_windows`` and ``first_window_id`` added. ``windows.parquet``
 is then the index of all rows: it gains the columns ``shard`` and ``shard_row`` after
 ``window_id`` (:data:`SHARD_COLUMNS`, also in every shard's ``meta/``) and its provenance
-the key ``shards`` (``windows_per_shard`` and the ``files`` with their ``n_windows``). A
-dataset of at most ``shard_windows`` windows keeps the single-file layout byte for byte.
+the key ``shards`` (``windows_per_shard`` and the ``files`` with their ``n_windows``), and
+``signals.parquet`` is split the same way: ``signals-00000.parquet``, … (:func:`signals_name`),
+one per HDF5 shard with its rows. A dataset of at most ``shard_windows`` windows keeps the
+single-file layout byte for byte.
+
+Folders written before ``signals.parquet`` and ``croissant.json`` existed still verify and load;
+``ofbe-dataset export`` adds both to their copy.
 
 Everything is deterministic: identical inputs give byte-identical files. HDF5 objects are
 created without timestamps (``track_times=False``) in a file of the earliest format
@@ -69,6 +78,10 @@ DATAPACKAGE_NAME = "datapackage.json"
 README_NAME = "README.md"
 CITATION_NAME = "CITATION.cff"
 SUMS_NAME = "SHA256SUMS"
+CROISSANT_NAME = "croissant.json"
+SIGNALS_NAME = "signals.parquet"
+#: The column of the signal Parquet files that holds the window: (T, 3) float32, m/s².
+SIGNAL_COLUMN = "X"
 
 UNITS = "m/s^2"
 FRAME = "sensor"
@@ -83,11 +96,25 @@ _PROTOCOL_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]*$")
 _SUMS_LINE_RE = re.compile(r"^([0-9a-f]{64}) [ *](.+)$")
 SHARD_RE = re.compile(r"^windows-(\d{5})\.h5$")
 """Names of shard files: ``windows-<5 digits>.h5``."""
+SIGNALS_RE = re.compile(r"^signals(-\d{5})?\.parquet$")
+"""Names of signal Parquet files: ``signals.parquet`` or ``signals-<5 digits>.parquet``."""
 
 
 def shard_name(index: int) -> str:
     """File name of shard ``index`` (0-based) of a sharded dataset: ``windows-00000.h5``, …."""
     return f"windows-{index:05d}.h5"
+
+
+def signals_name(index: int | None = None) -> str:
+    """File name of the signal Parquet file of HDF5 shard ``index`` (``signals-00000.parquet``,
+    …), or of the single-file layout's ``windows.h5`` (``signals.parquet``) when ``index`` is None."""
+    return SIGNALS_NAME if index is None else f"signals-{index:05d}.parquet"
+
+
+def signal_names(layout: Sequence[tuple[str, int]] | None) -> list[str]:
+    """The signal Parquet files that go with a folder's HDF5 layout (:func:`shard_layout`'s value):
+    ``["signals.parquet"]`` for one ``windows.h5``, one ``signals-<shard>.parquet`` per shard."""
+    return [SIGNALS_NAME] if layout is None else [signals_name(i) for i in range(len(layout))]
 
 
 class DatasetError(OfbeError):
@@ -221,6 +248,34 @@ def _all_columns(protocols: Sequence[str], sharded: bool = False) -> list[_Colum
 def _arrow_schema(protocols: Sequence[str], sharded: bool = False) -> pa.Schema:
     return pa.schema([pa.field(c.name, _ARROW_TYPES[c.kind], nullable=c.nullable)
                       for c in _all_columns(protocols, sharded)])
+
+
+def signal_type(window_length: int) -> pa.DataType:
+    """Arrow type of :data:`SIGNAL_COLUMN`: a fixed-size list of T fixed-size lists of 3 float32
+    (one window, axes (sample, x/y/z), m/s²); list items named ``element`` as in Parquet's LIST."""
+    inner = pa.list_(pa.field("element", pa.float32()), 3)
+    return pa.list_(pa.field("element", inner), window_length)
+
+
+def _signal_schema(protocols: Sequence[str], window_length: int, sharded: bool = False) -> pa.Schema:
+    """Columns of a signal Parquet file: those of ``windows.parquet``, then :data:`SIGNAL_COLUMN`."""
+    base = _arrow_schema(protocols, sharded)
+    return base.append(pa.field(SIGNAL_COLUMN, signal_type(window_length), nullable=False))
+
+
+def _is_signal_type(t: pa.DataType, window_length: int) -> bool:
+    """Whether ``t`` is a (T, 3) float32 window, whatever its list items are called."""
+    return (pa.types.is_fixed_size_list(t) and t.list_size == window_length
+            and pa.types.is_fixed_size_list(t.value_type) and t.value_type.list_size == 3
+            and t.value_type.value_type == pa.float32())
+
+
+def _same_signal_schema(found: pa.Schema, expected: pa.Schema, window_length: int) -> bool:
+    """Same column names and types, X a (T, 3) float32 window whatever its list items are called
+    (Parquet's LIST says ``element``, Arrow ``item``: readers of other versions may differ)."""
+    return found.names == expected.names and all(
+        _is_signal_type(f.type, window_length) if f.name == SIGNAL_COLUMN else f.type == e.type
+        for f, e in zip(found, expected, strict=True))
 
 
 # ---------------------------------------------------------------------------------------------

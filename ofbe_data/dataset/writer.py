@@ -1,5 +1,6 @@
 """Writing a dataset: window metadata normalised and checked, windows streamed into HDF5 + Parquet
-(one ``windows.h5``, or shard files ``windows-00000.h5``, … above ``shard_windows`` windows)."""
+(one ``windows.h5``, or shard files ``windows-00000.h5``, … above ``shard_windows`` windows), then
+the signal Parquet file(s) copied from the finished HDF5 file(s) and the package files."""
 
 from __future__ import annotations
 
@@ -21,6 +22,7 @@ import pyarrow.parquet as pq
 from ofbe_data import __version__
 from ofbe_data.core.atomic import write_bytes_atomic
 from ofbe_data.dataset.package import write_package_files
+from ofbe_data.dataset.signals import write_signal_files
 from ofbe_data.dataset.store import (
     _COLUMN_BY_NAME,
     _PER_WINDOW,
@@ -210,8 +212,10 @@ class WindowWriter:
 
     ``X`` goes to the HDF5 file at once and is not kept; only the (small) metadata is held
     until the end. On a clean exit the writer completes the HDF5 file (``y`` and ``meta/``),
-    writes ``windows.parquet`` and then :func:`write_package_files`. On an exception it closes
-    the HDF5 file, removes its temporary name and re-raises; the caller discards the folder.
+    writes ``windows.parquet``, the signal Parquet file(s) (:func:`write_signal_files`, reading
+    the HDF5 file(s) back one row group at a time) and then :func:`write_package_files`. On an
+    exception it closes the HDF5 file, removes its temporary name and re-raises; the caller
+    discards the folder.
 
     With ``shard_windows`` = S, the (S+1)-th window starts a new file: the full one is completed
     (``y``, ``meta/`` of its rows, the shard attributes), closed and named ``windows-00000.h5``,
@@ -461,4 +465,7 @@ class WindowWriter:
         table = pa.Table.from_arrays(arrays, schema=schema).replace_schema_metadata(
             {b"ofbe": json.dumps(_parquet_provenance(self.info, shards), allow_nan=False).encode()})
         write_bytes_atomic(self._parquet_path, _parquet_bytes(table))
+        h5_bytes = sum(p.stat().st_size for p in self.folder.glob("windows*.h5"))
+        self._need_space(h5_bytes, "the signal Parquet files (about the size of the HDF5 files)")
+        write_signal_files(self.folder)
         write_package_files(self.folder, self.info)

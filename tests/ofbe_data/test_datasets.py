@@ -25,6 +25,13 @@ from ofbe_data.labelling.batch import expand_sessions, label_sessions
 from ofbe_data.labelling.labels import LabelParams
 from ofbe_data.labelling.store import read_labels
 from ofbe_data.simulator import load_config, simulate_campaign
+from tests.ofbe_data.other_tools import (
+    assert_croissant_matches,
+    assert_hugging_face_matches,
+    card_front_matter,
+    frictionless_report,
+    hf_offline,  # noqa: F401 - a fixture, used by name
+)
 
 T = 1000
 PARAMS = DatasetParams(window_length=T, stride=T)
@@ -282,35 +289,38 @@ def test_a_full_disk_is_refused_before_hdf5_sees_it(campaigns, tmp_path, capsys,
     assert not out.exists() and not any(tmp_path.glob(".out*"))
 
 
-def test_the_card_is_a_hugging_face_dataset_card_whose_parquet_loads(built, tmp_path) -> None:
-    import yaml
-
+@pytest.mark.usefixtures("hf_offline")
+def test_the_shared_copy_loads_with_hugging_face_datasets_with_its_signals(built, tmp_path) -> None:
+    """The export of each tiny campaign's dataset, through Hugging Face's own loader: one config per
+    protocol, every window with its samples (float32 (T, 3), bit for bit), label, metadata and fold
+    column as ``load_dataset`` gives them; the card's licence, size and task as the Hub reads them."""
     from ofbe_data.dataset.export import export_dataset
 
-    shared = export_dataset(built["rot"], tmp_path / "shared", licence="CC-BY-4.0")
-    text = (shared / "README.md").read_text(encoding="utf-8")
-    assert text.startswith("---\n")
-    front = yaml.safe_load(text.split("---\n")[1])
-    n = len(pd.read_parquet(shared / "windows.parquet"))
-    assert front["license"] == "cc-by-4.0" and front["pretty_name"]
-    assert front["size_categories"] == ["n<1K" if n < 1000 else "1K<n<10K"]
-    assert front["task_categories"] == ["tabular-regression"]
-    (config,) = front["configs"]
-    (files,) = config["data_files"]
-    assert config["config_name"] == "default" and files["split"] == "train"
-    # load it the way the dataset ecosystem does: the `datasets` package when installed, else
-    # pyarrow's dataset API (what `datasets` uses underneath for Parquet)
-    try:
-        import datasets  # type: ignore[import-not-found]
-
-        table = datasets.load_dataset("parquet", data_files={"train": str(shared / files["path"])},
-                                      split="train").data.table
-    except ImportError:
-        import pyarrow.dataset as pads
-
-        table = pads.dataset(shared / files["path"], format="parquet").to_table()
-    assert table.num_rows == n and {"bias_x", "bias_y", "bias_z", "fold_grouped"} <= set(table.column_names)
+    for c, protocols in (("rot", ["paper-rotated", "grouped"]), ("ga", ["paper-gravity", "grouped"])):
+        shared = export_dataset(built[c], tmp_path / c, licence="CC-BY-4.0")
+        front = card_front_matter(shared)
+        n = len(pd.read_parquet(shared / "windows.parquet"))
+        assert front["license"] == "cc-by-4.0" and front["pretty_name"]
+        assert front["size_categories"] == ["n<1K" if n < 1000 else "1K<n<10K"]
+        assert front["task_categories"] == ["tabular-regression"]
+        assert [cfg["config_name"] for cfg in front["configs"]] == protocols
+        for cfg in front["configs"]:  # every config reads the samples
+            assert cfg["data_files"] == [{"split": "train", "path": ["signals.parquet"]}]
+            assert cfg["features"][-1] == {"name": "X", "dtype": {"array2_d": {"shape": [T, 3],
+                                                                               "dtype": "float32"}}}
+        assert assert_hugging_face_matches(shared, tmp_path / "hf-cache") == 2
     # a licence the Hub does not list is `other` with its SPDX name
     odd = export_dataset(built["rot"], tmp_path / "odd", licence="CC-BY-ND-4.0")
-    front = yaml.safe_load((odd / "README.md").read_text(encoding="utf-8").split("---\n")[1])
+    front = card_front_matter(odd)
     assert front["license"] == "other" and front["license_name"] == "CC-BY-ND-4.0"
+
+
+def test_the_built_folder_validates_in_frictionless_and_croissant(built) -> None:
+    """What ``ofbe-dataset build`` writes is valid for frictionless-py's own validator (the table
+    row by row, the files by size and SHA-256) and for mlcroissant, whose records match."""
+    for path in built.values():
+        report = frictionless_report(path)
+        assert report.valid, report.flatten(["resourcePath", "type", "note"])
+        rows = {task.name: task.stats.get("rows") for task in report.tasks}
+        assert rows["windows"] == len(_meta(path))
+    assert_croissant_matches(built["rot"])

@@ -273,7 +273,7 @@ def test_export_refuses_a_licence_that_is_not_spdx(tmp_path: Path,
     assert dataset_main(["verify", str(built)]) == 0
     said = capsys.readouterr().out
     assert re.search(r"OK — ga \(ofbe-windows/1\): \d+ windows of 300 samples from \d+ recordings of 2 "
-                     r"devices; protocols paper-gravity, grouped; 5 files match their SHA-256 sums", said)
+                     r"devices; protocols paper-gravity, grouped; 7 files match their SHA-256 sums", said)
     assert "{" not in said
 
 

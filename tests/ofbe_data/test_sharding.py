@@ -40,6 +40,13 @@ from ofbe_data.dataset.writer import WindowWriter
 from ofbe_data.labelling.batch import expand_sessions, label_sessions
 from ofbe_data.labelling.labels import LabelParams
 from ofbe_data.simulator import simulate_campaign
+from tests.ofbe_data.other_tools import (
+    assert_croissant_matches,
+    assert_hugging_face_matches,
+    card_front_matter,
+    frictionless_report,
+    hf_offline,  # noqa: F401 - a fixture, used by name
+)
 
 T = 1000
 SHARD = 7
@@ -94,8 +101,8 @@ def test_default_keeps_the_single_file_layout_byte_for_byte(campaign: Path, sing
                                                            tmp_path: Path) -> None:
     assert PARAMS.shard_windows == DEFAULT_SHARD_WINDOWS >= 2500  # the paper's datasets stay whole
     names = sorted(p.name for p in single.iterdir())
-    assert names == ["CITATION.cff", "README.md", "SHA256SUMS", "datapackage.json", "windows.h5",
-                     "windows.parquet"]
+    assert names == ["CITATION.cff", "README.md", "SHA256SUMS", "croissant.json", "datapackage.json",
+                     "signals.parquet", "windows.h5", "windows.parquet"]
     # exactly N windows is not "above" the shard size: the same bytes as the default build
     at_limit = _build(campaign, tmp_path / "single", dataclasses.replace(PARAMS, shard_windows=N), jobs=1)
     assert _sums(at_limit) == _sums(single)
@@ -106,8 +113,10 @@ def test_default_keeps_the_single_file_layout_byte_for_byte(campaign: Path, sing
 
 def test_sharded_layout(sharded: Path) -> None:
     shards = [shard_name(i) for i in range(N_SHARDS)]
+    signals = [f"signals-{i:05d}.parquet" for i in range(N_SHARDS)]
     assert sorted(p.name for p in sharded.iterdir()) == sorted(
-        ["CITATION.cff", "README.md", "SHA256SUMS", "datapackage.json", "windows.parquet", *shards])
+        ["CITATION.cff", "README.md", "SHA256SUMS", "croissant.json", "datapackage.json", "windows.parquet",
+         *shards, *signals])
     table = pq.read_table(sharded / "windows.parquet")
     assert table.column_names[:3] == ["window_id", "shard", "shard_row"]
     index = table.to_pandas()
@@ -135,8 +144,8 @@ def test_sharded_layout(sharded: Path) -> None:
     # one resource, one card row and one checksum per shard
     dp = json.loads((sharded / "datapackage.json").read_text())
     res = {r["path"]: r for r in dp["resources"]}
-    assert set(res) == {*shards, "windows.parquet"}
-    for name in shards:
+    assert set(res) == {*shards, "windows.parquet", *signals}
+    for name in (*shards, *signals):
         assert res[name]["hash"] == "sha256:" + sha256_file(sharded / name)
         assert res[name]["bytes"] == (sharded / name).stat().st_size
     assert dp["ofbe"]["shards"]["n_shards"] == N_SHARDS and dp["ofbe"]["n_windows"] == N
@@ -144,9 +153,14 @@ def test_sharded_layout(sharded: Path) -> None:
                                                                                    "shard_row"]
     card = (sharded / "README.md").read_text()
     assert f"Sharded: {N_SHARDS} HDF5 files of at most {SHARD} windows" in card
-    assert all(f"| {name} |" in card for name in shards) and "iter_shards" in card
-    assert set(_sums(sharded)) == {*shards, "windows.parquet", "datapackage.json", "README.md",
-                                   "CITATION.cff"}
+    assert all(f"| {name} |" in card for name in (*shards, *signals)) and "iter_shards" in card
+    assert set(_sums(sharded)) == {*shards, *signals, "windows.parquet", "datapackage.json", "croissant.json",
+                                   "README.md", "CITATION.cff"}
+    # each signal file holds its shard's rows of the index, with X
+    for i, name in enumerate(signals):
+        table = pq.read_table(sharded / name)
+        assert table.column("window_id").to_pylist() == index.loc[index["shard"] == i, "window_id"].tolist()
+        assert table.column_names == [*index.columns, "X"]
 
 
 # -- loading ---------------------------------------------------------------------------------
@@ -404,3 +418,21 @@ def test_a_sharded_dataset_exports_whole(sharded: Path, tmp_path: Path) -> None:
         if name.endswith((".h5", ".parquet")):
             assert _sums(dest)[name] == digest, name  # data copied byte for byte
     np.testing.assert_array_equal(load_dataset(dest).X, load_dataset(sharded).X)
+
+
+@pytest.mark.usefixtures("hf_offline")
+def test_the_sharded_export_loads_in_hugging_face_croissant_and_frictionless(sharded: Path,
+                                                                            tmp_path: Path) -> None:
+    """The shared copy of the sharded tiny-fleet dataset: every window with its samples through each
+    protocol's Hugging Face config (reading the 12 signal files in order), through Croissant's
+    ``signals`` record set (a FileSet over them), and a valid Frictionless package."""
+    from ofbe_data.dataset.export import export_dataset
+
+    dest = export_dataset(sharded, tmp_path / "shared")
+    n_protocols = len(json.loads((dest / "datapackage.json").read_text())["ofbe"]["protocols"])
+    assert assert_hugging_face_matches(dest, tmp_path / "hf-cache") == n_protocols >= 1
+    (split,) = card_front_matter(dest)["configs"][0]["data_files"]
+    assert split["path"] == [f"signals-{i:05d}.parquet" for i in range(N_SHARDS)]
+    assert_croissant_matches(dest)
+    report = frictionless_report(dest)
+    assert report.valid, report.flatten(["resourcePath", "type", "note"])

@@ -21,6 +21,9 @@ def test_stage_writes_the_campaigns_of_params(tmp_path, monkeypatch):
     assert simulate.main() == 0
     assert (tmp_path / "raw" / "small-ga" / "ga-pc001" / "rec-01" / "sparkfun-1.csv"
             ).read_bytes() == first
+    listed = (tmp_path / "checksums" / "simulate.sha256").read_text().splitlines()
+    assert any(line.endswith("  raw/small-ga/ga-pc001/rec-01/sparkfun-1.csv") for line in listed)
+    assert len(listed) == sum(1 for p in (tmp_path / "raw").rglob("*") if p.is_file())
 
 
 def test_repository_params_and_dvc_stage_agree():
@@ -29,6 +32,8 @@ def test_repository_params_and_dvc_stage_agree():
     root = Path(__file__).resolve().parents[2]
     params = yaml.safe_load((root / "params.yaml").read_text())["simulate"]
     stage = yaml.safe_load((root / "dvc.yaml").read_text())["stages"]["simulate"]
-    assert sorted(stage["outs"]) == sorted(f"raw/{name}" for name in params["campaigns"])
+    folders = [o for o in stage["outs"] if isinstance(o, str)]
+    assert sorted(folders) == sorted(f"raw/{name}" for name in params["campaigns"])
+    assert {"checksums/simulate.sha256": {"cache": False}} in stage["outs"]
     assert {e["profile"] for e in params["campaigns"].values()} == {"gravity-aligned", "rotated",
                                                                     "multi-position"}
