@@ -15,12 +15,15 @@ import numpy as np
 from scipy.stats import chi2
 from scipy.stats import f as f_distribution
 
+from ofbe_data.io.gravity import G0
 from ofbe_data.labelling.conventions import ANGLE_NAMES
 from ofbe_data.labelling.multiposition import (
     MIN_TEMPERATURE_SPAN_C,
     TEMPERATURE,
     PoseFit,
     _check_means,
+    _nan_fit,
+    base_model,
     fit_poses,
     has_temperature,
     min_poses,
@@ -149,7 +152,40 @@ def choose_fit(means: np.ndarray, g: float, model: str = "auto", max_condition: 
         notes.append(verdict)
     elif np.isfinite(span) and span < MIN_TEMPERATURE_SPAN_C:
         notes.append(f"no temperature slope: the poses span {span:.1f} °C, {MIN_TEMPERATURE_SPAN_C:g} needed")
+    if base_model(chosen.model) == "offset":
+        leak = scale_leak_mg(chosen, g)
+        if leak > MAX_SCALE_LEAK_MG:
+            why = (f"the poses do not determine it: a scale error of {SCALE_ERROR_PRIOR:.0%} per axis, "
+                   f"which the offset model cannot see, would move it by up to {leak:.2f} mg (at most "
+                   f"{MAX_SCALE_LEAK_MG:g} mg): the directions are unbalanced (a face without its "
+                   f"opposite?); record the opposite faces, or {min_poses('scale-offset')} poses or more "
+                   "for the scale-offset model")
+            undetermined = _nan_fit(chosen.model, m.shape[0], chosen.residual_rms, chosen.condition, why)
+            return ModelChoice(undetermined, f"{chosen.model}: " + "; ".join([*notes, why]))
     return ModelChoice(chosen, f"{chosen.model}: " + "; ".join(notes))
+
+
+SCALE_ERROR_PRIOR = 0.02
+"""Per-axis scale error the ``offset`` model is assumed to leave unseen (an ADXL345's sensitivity
+is specified to a few per cent)."""
+MAX_SCALE_LEAK_MG = 0.5
+"""Largest offset change, mg, such a scale error may cause for an ``offset`` fit to be written."""
+
+
+def scale_leak_mg(fit: PoseFit, g: float) -> float:
+    """How far an unseen scale error of :data:`SCALE_ERROR_PRIOR` per axis moves ``fit``'s offset, mg.
+
+    Linearised: a scale error δs adds g·δs_i·u_k,i to pose k's axis i, which changes its norm
+    residual by g·Σ_i u_k,i²·δs_i, so δb = g·(EᵀE)⁻¹Eᵀ·U²·δs with E the poses' unit directions
+    and U² their squares. Opposite faces cancel (Σ u_k u_k,i² = 0): six faces, or any set
+    balanced so, leave the offset untouched, while a face without its opposite leaks the
+    scale error of its axis into the offset. Returns the worst axis with |δs_i| ≤ the prior.
+    """
+    e = fit.directions
+    if not np.all(np.isfinite(e)):
+        return float("inf")
+    sens = g * np.linalg.pinv(e.T @ e) @ e.T @ (e * e)
+    return float(np.max(np.sum(np.abs(sens), axis=1)) * SCALE_ERROR_PRIOR / (G0 / 1000.0))
 
 
 def _six_face_words(means: np.ndarray, g: float, weights: np.ndarray | None) -> str:

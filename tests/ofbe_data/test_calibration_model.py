@@ -213,6 +213,24 @@ def test_too_few_poses_stop_the_ladder_and_say_why() -> None:
     assert not forced.fit.determined and "10 poses needed for the full model, found 8" in forced.reason
 
 
+def test_an_offset_the_poses_do_not_determine_is_not_written() -> None:
+    """Issue 22: four of six faces labelled (two lost to a wrong rate guess) and an offset 1.7 mg
+    off was still written. Six faces leave the offset untouched by a scale error (opposite faces
+    cancel it); four do not, and the ladder now says so instead of writing it."""
+    a = np.diag([1.015, 0.985, 1.02])  # 1.5-2 % scale errors, which the offset model cannot see
+    b = np.array([0.05, -0.03, 0.1])
+    faces = G * np.vstack([np.eye(3), -np.eye(3)]) @ a.T + b
+    six = choose_fit(faces, G)
+    assert six.fit.model == "offset" and six.fit.determined
+    np.testing.assert_allclose(six.fit.offset, b, atol=1e-9)
+    four = choose_fit(faces[[0, 3, 1, 2]], G)  # +x, -x, +y, +z: -y and -z lost
+    assert not four.fit.determined and np.all(np.isnan(four.fit.offset))
+    assert ("the poses do not determine it: a scale error of 2% per axis, which the offset model cannot see, "
+            "would move it by up to 21.00 mg (at most 0.5 mg)") in four.reason
+    offset_only = fit_poses(faces[[0, 3, 1, 2]], G, "offset")
+    assert np.abs(offset_only.offset - b).max() > 0.05  # what would have been written: 5 mg and more off
+
+
 def test_poses_in_one_plane_fit_no_richer_model() -> None:
     rng = np.random.default_rng(6)
     phi = np.linspace(0, 2 * np.pi, 16, endpoint=False)
