@@ -583,6 +583,29 @@ def test_rows_sorted_by_another_column_are_named_and_sort_by_time_reads_them(tmp
     np.testing.assert_allclose([row[f"bias_{a}"] for a in "xyz"], [0.03, -0.02, 9.83 - 9.80665], atol=1e-3)
 
 
+def test_a_huge_sparse_file_is_refused_before_it_is_read(tmp_path: Path) -> None:
+    """Issue 24: a 2 GB file (a good log, then a sparse tail) grew check and label to 24 GB and
+    the kernel killed them. It is refused with where the data ends, before it is read
+    (benchmarks/huge_file.py measures the peak memory)."""
+    session = _copy_session(tmp_path / "s")
+    f = session / "rec-01" / "sparkfun-1.csv"
+    data_bytes = f.stat().st_size
+    os.truncate(f, 2 * 2**30)  # sparse: no disk used
+    done = _run(["ofbe_data.cli.label", str(session), "--out", str(tmp_path / "labels"), "--quiet"],
+                timeout=120)
+    assert done.returncode == 1 and not list((tmp_path / "labels").rglob("*.parquet"))
+    (line,) = [ln for ln in done.stderr.splitlines() if "error:" in ln]  # and the summary line
+    assert "Traceback" not in done.stderr
+    assert line.endswith(
+        f"sparkfun-1.csv: expected text data, found {(2 * 2**30 - data_bytes) / 1e6:.1f} MB from byte "
+        f"{data_bytes} on that start with 4096 NUL bytes in a row (a preallocated or sparse file: "
+        f"{data_bytes / 1e6:.1f} MB of it is data; keep the first {data_bytes} bytes in a copy, raw/ stays "
+        "as it is)"), line
+    checked = _run(["ofbe_data.cli.session", "check", str(session)], timeout=120)
+    assert checked.returncode == 1 and "preallocated or sparse file" in checked.stdout
+    assert f.stat().st_size == 2 * 2**30  # raw/ untouched
+
+
 def test_likely_mistakes_are_named() -> None:
     from ofbe_data.labelling.checks import likely_mistake
 

@@ -423,7 +423,7 @@ def read_mscip_bin(path: str | Path, sample_rate_hz: float | None = None, acc_un
     path = Path(path)
     if acc_unit not in ACC_UNITS:
         raise ValueError(f"acc_unit: expected one of {', '.join(ACC_UNITS)}, found {acc_unit!r}")
-    data = read_file_bytes(path)
+    data = read_file_bytes(path, text=False)
     s = decode_mscip(data)
     bad = (f"{s.packets_bad_checksum} with a bad checksum, {s.packets_bad_layout} with a bad layout, "
            f"{s.packets_truncated} truncated")
