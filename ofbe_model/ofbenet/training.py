@@ -44,6 +44,7 @@ from __future__ import annotations
 import dataclasses
 import io
 import json
+import shutil
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -407,14 +408,30 @@ def train_many(datasets: Sequence[str | Path], protocols: Sequence[str], out: st
     runs = [(dataset, protocol, _run_splits(loaded[dataset], protocol, folds))
             for dataset, protocol in plan_runs(loaded, protocols)]
     sized: list[tuple[int, FitTask]] = []
+    created: list[Path] = []  # the topmost folders this run makes, removed again if it fails
     for dataset, protocol, splits in runs:
         for split in splits:
             folder = out / dataset_dirname(split.dataset) / protocol
+            missing = [p for p in (folder, *folder.parents) if not p.exists()]
+            if missing:  # its topmost missing folder: once made, later folders under it are not missing
+                created.append(missing[-1])
             folder.mkdir(parents=True, exist_ok=True)
             sized += [(int(split.train.size), FitTask(dataset, protocol, split.dataset, split.fold,
                                                       dataclasses.replace(params, seed=params.seed + i),
                                                       str(folder)))
                       for i in range(seeds)]
+    try:
+        return _fit_and_summarise(sized, runs, loaded, out, params, jobs, progress, scheduler)
+    except BaseException:
+        for folder in created:  # nothing half-made stays behind (empty model folders, partial summaries)
+            shutil.rmtree(folder, ignore_errors=True)
+        raise
+
+
+def _fit_and_summarise(sized: list[tuple[int, FitTask]], runs: list[tuple[str, str, list[Split]]],
+                       loaded: Mapping[str, Any], out: Path, params: OFBENetParams, jobs: int, progress: bool,
+                       scheduler: str) -> list[Path]:
+    """Run every fit (largest first) and write the summaries; :func:`train_many`'s body."""
     tasks = [task for _, task in sorted(sized, key=lambda pair: -pair[0])]  # stable: ties keep their order
     desc = f"{PROG} {runs[0][1]}" if len(runs) == 1 else f"{PROG} {len(runs)} runs"
     results = map_progress(_fit_task, tasks, jobs=jobs, desc=desc, unit="fit", progress=progress,

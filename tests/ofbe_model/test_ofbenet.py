@@ -425,6 +425,24 @@ def tiny(tmp_path_factory) -> Path:
     return path
 
 
+def test_a_failed_train_leaves_no_folders_behind(tiny, tmp_path, capsys, monkeypatch) -> None:
+    """Issue 24: a training run that failed (a scheduler nobody listens on, a fit that
+    raises) left empty model folders behind; what the run made is removed, what was there
+    before stays."""
+    from ofbe_model.ofbenet import training
+
+    out = tmp_path / "models"
+    (out / "mine").mkdir(parents=True)
+
+    def failing(*args, **kwargs):
+        raise EstimatorError("fit failed")
+
+    monkeypatch.setattr(training, "_fit_and_summarise", failing)
+    code = main([str(tiny), "--protocol", "grouped", "--out", str(out), "--max-epochs", "1", "--quiet"])
+    assert code == 1 and "fit failed" in capsys.readouterr().err
+    assert sorted(p.name for p in out.iterdir()) == ["mine"]
+
+
 def test_ofbe_train_writes_models_curves_and_summary(tiny, tmp_path, capsys) -> None:
     out = tmp_path / "models"
     base = [str(tiny), "--protocol", "grouped", "--out", str(out), "--max-epochs", "2"]
