@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import shutil
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -96,13 +97,24 @@ def _build(args: argparse.Namespace) -> int:
     except OfbeError as exc:
         return fail(PROG, str(exc), 1)
     except OSError as exc:
-        return fail(PROG, f"{exc.filename or out}: {exc.strerror or exc}: the dataset could not be written "
-                          "(nothing partial is kept; free space and rerun)", 1)
+        return fail(PROG, _io_failure(exc, out, "the dataset could not be written"), 1)
     if not args.quiet:
         print(f"ofbe-dataset: {result.n_windows} windows from {result.n_recordings} recordings "
               f"({len(result.excluded)} too short), protocols {', '.join(result.protocols)} -> {result.path}",
               file=sys.stderr)
     return 0
+
+
+def _io_failure(exc: OSError, out: Path, what: str) -> str:
+    """One line for a failed write (a full disk, an I/O error): the file, the error, the free
+    space where it was going, and that nothing partial was kept."""
+    where = next((p for p in (out, *out.parents) if p.exists()), Path("."))
+    try:
+        free = f"{shutil.disk_usage(where).free / 1e6:.1f} MB free on {where}'s disk"
+    except OSError:
+        free = "free space unknown"
+    return (f"{exc.filename or out}: {exc.strerror or exc} ({free}): {what}; nothing partial is kept, "
+            "free space and rerun")
 
 
 @command(PROG)
@@ -125,6 +137,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0
     except OfbeError as exc:
         return fail(PROG, str(exc), 1)
+    except OSError as exc:
+        return fail(PROG, _io_failure(exc, Path(args.out or args.path), "the export could not be written"), 1)
 
 
 if __name__ == "__main__":  # pragma: no cover

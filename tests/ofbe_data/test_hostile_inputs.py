@@ -277,6 +277,33 @@ def test_export_refuses_a_licence_that_is_not_spdx(tmp_path: Path,
     assert "{" not in said
 
 
+def test_a_full_disk_during_export_is_one_line_and_leaves_nothing(tmp_path: Path, capsys,
+                                                                    monkeypatch) -> None:
+    """Issue 24: a full disk during ``ofbe-dataset export`` was a raw OSError traceback."""
+    import errno
+
+    from ofbe_data.cli.dataset import main as dataset_main
+    from ofbe_data.dataset import export as export_module
+
+    built = _built_dataset(tmp_path)
+    calls = []
+
+    def full(src, dst, *args, **kwargs):
+        calls.append(dst)
+        if len(calls) == 2:  # the second file no longer fits
+            raise OSError(errno.ENOSPC, "No space left on device", str(dst))
+        return shutil.copyfile(src, dst)
+
+    monkeypatch.setattr(export_module.shutil, "copyfile", full)
+    out = tmp_path / "exported"
+    assert dataset_main(["export", str(built), "--out", str(out)]) == 1
+    line = _one_line(capsys.readouterr().err)
+    assert re.search(r"ofbe-dataset: error: .*: No space left on device \(\d+\.\d MB free on .*'s disk\): "
+                     r"the export could not be written; nothing partial is kept, free space and rerun$",
+                     line), line
+    assert not out.exists() and [p.name for p in tmp_path.iterdir() if p.name.startswith(".exported")] == []
+
+
 def _built_dataset(tmp_path: Path) -> Path:
     from ofbe_data.dataset.build import DatasetParams, build_dataset
     from ofbe_data.labelling.batch import expand_sessions, label_sessions
