@@ -4,8 +4,9 @@ The page is made from what the DVC pipeline left on disk, nothing is recomputed 
 label fidelity (labels against the simulator's truth, :func:`ofbe_data.dataset.fidelity.label_fidelity`):
 
 1. what was run (profile, campaigns, toolkit version);
-2. the paper's Table 3 per benchmark protocol, copied from ``reports/benchmark/<protocol>/benchmark.md``,
-   with its figures and files;
+2. the paper's published Table 3 beside ours (the protocols' "Against the paper's Table 3"
+   sections joined in one table), then the paper's Table 3 per benchmark protocol, copied from
+   ``reports/benchmark/<protocol>/benchmark.md``, with its figures and files;
 3. the convergence headline (``reports/convergence/convergence.json``) and figures;
 4. the small-angle thresholds (``reports/small_angle/small_angle.json``) and figures;
 5. label fidelity per simulated campaign (``processed/labels/<campaign>`` against ``raw/<campaign>/_truth``);
@@ -163,10 +164,43 @@ def _intro_section(campaigns: Sequence[str], protocols: Sequence[str], profile: 
     ]
 
 
+PAPER_SECTION = "Against the paper's Table 3"
+"""Section of ``benchmark.md`` with the paper's published Table 3 beside ours."""
+
+
+def _paper_section(page: _Page, protocols: Sequence[str]) -> list[str]:
+    """One table of the paper's published Table 3 beside ours, joined from the protocols'
+    ``benchmark.md`` sections (the rows of each; header and legend of the first); none when no
+    protocol has one."""
+    header: list[str] = []
+    rows: list[str] = []
+    legend: list[str] = []
+    for protocol in protocols:
+        md_path = page.reports / "benchmark" / protocol / "benchmark.md"
+        if not md_path.is_file():
+            continue
+        body = markdown_section(md_path.read_text(encoding="utf-8"), PAPER_SECTION)
+        if not body:
+            continue
+        table = [ln for ln in body.splitlines() if ln.startswith("|")]
+        if len(table) < 3:
+            continue
+        if not header:
+            header = table[:2]
+            legend = [ln for ln in body.splitlines() if ln.strip() and not ln.startswith("|")]
+        rows += table[2:]
+    if not rows:
+        return []
+    return [f"### {PAPER_SECTION}", "",
+            "Levin & Klein's published Table 3 (their paper-gravity and paper-rotated protocols) beside this "
+            "run's numbers under the same protocols.", "", *header, *rows, "", *legend, ""]
+
+
 def _benchmark_section(page: _Page, protocols: Sequence[str]) -> list[str]:
     lines = ["## Benchmark (the paper's Table 3)", ""]
     if not protocols:
         lines += ["No benchmark protocol was asked for.", ""]
+    lines += _paper_section(page, protocols)
     for protocol in protocols:
         folder = page.reports / "benchmark" / protocol
         lines += [f"### {protocol}", ""]

@@ -7,7 +7,8 @@ atomically; products.md §Reports, ``reports/benchmark/<protocol>/``):
 - ``benchmark.json``: DVC metrics, format ``ofbe-benchmark/1`` (:func:`summarise`); sorted
   keys, floats rounded to :data:`SIGNIFICANT_DIGITS` significant digits, NaN and ±inf as
   ``null``, so the same predictions always give the same bytes;
-- ``benchmark.md``: Table 3 (:func:`table3_markdown`), the figures, the fold- and
+- ``benchmark.md``: Table 3 (:func:`table3_markdown`), the figures, the paper's published
+  Table 3 beside ours (:mod:`ofbe_model.benchmark.paper`), the fold- and
   signal-level t-test tables per baseline, the calibration of posterior stds, notes;
 - ``errors.csv``: per-signal error vectors ``ŷ − y`` and their norms (DVC plots);
 - ``fold_metrics.csv``: RMSE and E_max per (dataset, method, fold) (DVC plots);
@@ -46,6 +47,7 @@ import pandas as pd
 from ofbe_data.core.atomic import atomic_directory, write_bytes_atomic
 from ofbe_model.benchmark.figures import max_error_figure, rmse_figure, t_figure
 from ofbe_model.benchmark.ordering import _all_methods, ordered_methods
+from ofbe_model.benchmark.paper import paper_comparison, paper_markdown
 from ofbe_model.benchmark.statistics import (
     AXES,
     STD_COLUMNS,
@@ -206,7 +208,9 @@ def summarise(pred: pd.DataFrame, baselines: Sequence[str] = DEFAULT_BASELINES,
         "max_error_folds", "max_error_mean",
         "improvement_pct": {baseline: %}, "t_test": {baseline: {"fold": {"t", "p"},
         "signal": {"t", "p"}}}, "oracle_ratio", "mean_std_m_s2", "coverage_1sigma",
-        "coverage_1sigma_axes"}}}}}``. Lengths and errors in m/s²; folds ascending; floats
+        "coverage_1sigma_axes"}}}}, "paper": {dataset: the paper's Table 3 beside ours}}``
+        (:func:`ofbe_model.benchmark.paper.paper_comparison`; empty when the paper reports
+        none of the datasets under this protocol). Lengths and errors in m/s²; folds ascending; floats
         rounded to :data:`SIGNIFICANT_DIGITS` significant digits; NaN and ±inf as None.
         ``rmse_std`` is the sample std (ddof = 1) over folds; the conventions of the tests
         are in the module docstring. A method with several training seeds (OFBENet) has its
@@ -233,7 +237,8 @@ def summarise(pred: pd.DataFrame, baselines: Sequence[str] = DEFAULT_BASELINES,
     datasets = {ds: _dataset_summary(g, folds[folds["dataset"] == ds], present, the_oracle)
                 for ds, g in df.groupby("dataset", sort=True)}
     return {"format": REPORT_FORMAT, "protocol": protocols[0], "baselines": present,
-            "baselines_absent": absent, "oracle": the_oracle, "datasets": datasets}
+            "baselines_absent": absent, "oracle": the_oracle, "datasets": datasets,
+            "paper": paper_comparison(protocols[0], datasets, present)}
 
 
 
@@ -440,6 +445,9 @@ def report_markdown(summary: dict[str, Any], title: str, method_order: Sequence[
         "![maximum error per method and dataset](max_error.png)",
         "",
     ]
+    paper = paper_markdown(summary.get("paper") or {})
+    if paper:
+        lines += ["## Against the paper's Table 3", "", paper]
     for b in summary["baselines"]:
         lines += [
             f"## Paired t-tests against {b}",

@@ -312,7 +312,8 @@ def test_config_file_with_base_profile_and_overrides(tmp_path):
     cfg = load_config(path)
     assert cfg.sessions == 4 and cfg.recordings_per_session == 3
     assert cfg.dut_model.noise_mg == (3.0, 3.0, 4.0)
-    assert cfg.dut_model.offset_sigma_mg == (12.0, 12.0, 20.0)
+    assert cfg.dut_model.offset_sigma_mg == (13.5, 13.5, 22.5)  # the base profile's, merged key by key
+    assert cfg.dut_model.mount_sigma_deg == 0.3 and cfg.dut_model.drift_sigma_mg == 0.3
     assert cfg.reference is not None and cfg.reference.id == "memsense"
 
 

@@ -327,3 +327,44 @@ def test_empty_reports_degrades_gracefully(tmp_path):
     assert "No trained models" in text
     assert "no profile named" in text
     assert "](" not in text
+
+
+PAPER_SECTION_MD = """## Against the paper's Table 3
+
+| Dataset (paper) | Paper's method | Ours | Paper RMSE (m/s²) |
+|---|---|---|---:|
+{rows}
+
+Paper: the legend of {protocol}.
+
+## Paired t-tests against ls-trf
+"""
+
+
+def test_paper_table_joined_from_the_protocols(tree):
+    gravity = tree / "reports" / "benchmark" / "paper-gravity" / "benchmark.md"
+    gravity.write_text(BENCHMARK_MD.replace(
+        "## Paired t-tests against ls-trf\n",
+        PAPER_SECTION_MD.format(rows="| gravity-aligned | Least Squares | `ls-trf` | 0.1767 |",
+                                protocol="paper-gravity"), 1), encoding="utf-8")
+    rotated = tree / "reports" / "benchmark" / "paper-rotated"
+    _write(rotated / "benchmark.md", BENCHMARK_MD.replace("paper-gravity", "paper-rotated").replace(
+        "## Paired t-tests against ls-trf\n",
+        PAPER_SECTION_MD.format(rows="| rotated, SparkFun 1 | OFBENet | `ofbenet` | 0.0392 |\n"
+                                     "|  | (beyond the paper) | `oracle` | – |",
+                                protocol="paper-rotated"), 1))
+    text = build_index(tree, ["sim"], ["paper-gravity", "paper-rotated", "grouped"], None)
+    body = _section(text, "Benchmark (the paper's Table 3)")
+    paper = body.split("### paper-gravity")[0]
+    assert paper.count("### Against the paper's Table 3") == 1 and text.count("| Dataset (paper) |") == 1
+    rows = [ln for ln in paper.splitlines() if ln.startswith("| ") and "Dataset (paper)" not in ln]
+    assert rows == ["| gravity-aligned | Least Squares | `ls-trf` | 0.1767 |",
+                    "| rotated, SparkFun 1 | OFBENet | `ofbenet` | 0.0392 |",
+                    "|  | (beyond the paper) | `oracle` | – |"]
+    assert "Paper: the legend of paper-gravity." in paper and "legend of paper-rotated" not in text
+    # the per-protocol Table 3 copies stay as they were
+    assert TABLE3 in body.split("### paper-gravity")[1]
+
+
+def test_no_paper_table_without_paper_sections(tree):
+    assert "Against the paper" not in _index(tree)
