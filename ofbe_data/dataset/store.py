@@ -49,7 +49,6 @@ in :mod:`~ofbe_data.dataset.package`, verifying and loading in
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import json
 import math
 import re
@@ -63,6 +62,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from ofbe_data.core.checksums import file_sha256 as sha256_file  # noqa: F401 (re-exported)
 from ofbe_data.core.errors import ConfigError, OfbeError
 
 SCHEMA_VERSION = "ofbe-windows/1"
@@ -90,7 +90,6 @@ PAPER_TITLE = ("Orientation-Free Neural Network-Based Bias Estimation for Low-Co
                "Accelerometers")
 PAPER_AUTHORS = ("Levin", "Klein")
 
-_HASH_BLOCK = 1 << 20
 _TF_BLOCK = 256  # windows read from the file at a time by the tf.data generator
 _PROTOCOL_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]*$")
 _SUMS_LINE_RE = re.compile(r"^([0-9a-f]{64}) [ *](.+)$")
@@ -431,15 +430,6 @@ class DatasetInfo:
 
 def _json_bytes(obj: Any) -> bytes:
     return (json.dumps(obj, indent=2, ensure_ascii=False, allow_nan=False) + "\n").encode()
-
-
-def sha256_file(path: str | Path) -> str:
-    """Hex SHA-256 of a file, read in 1 MiB blocks."""
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(_HASH_BLOCK), b""):
-            h.update(block)
-    return h.hexdigest()
 
 
 def _plain(value: Any) -> Any:

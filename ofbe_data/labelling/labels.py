@@ -23,7 +23,6 @@ Per recording and DUT device:
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -32,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from ofbe_data import __version__
+from ofbe_data.core.checksums import file_sha256 as sha256_file  # noqa: F401 (re-exported)
 from ofbe_data.core.errors import ConfigError
 from ofbe_data.io.formats import read_device_file
 from ofbe_data.io.formats.filebytes import file_digests
@@ -233,15 +233,6 @@ class SessionLabels:
     rejections: list[Rejection] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
     files: dict[str, str] = field(default_factory=dict)
-
-
-def sha256_file(path: str | Path) -> str:
-    """Hex SHA-256 of a file's bytes."""
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
 
 
 @dataclass(frozen=True)
