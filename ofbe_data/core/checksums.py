@@ -52,9 +52,8 @@ def sha256_list(roots: Sequence[str | Path], base: str | Path = ".") -> bytes:
             files.add(root.resolve())
         elif root.is_dir():
             files.update(p.resolve() for p in root.rglob("*") if p.is_file())
-    lines = sorted(f"{file_sha256(p)}  {p.relative_to(base).as_posix()}" for p in files)
-    lines.sort(key=lambda line: line.split("  ", 1)[1])
-    return "".join(line + "\n" for line in lines).encode("utf-8")
+    named = sorted((p.relative_to(base).as_posix(), p) for p in files)
+    return "".join(f"{file_sha256(p)}  {rel}\n" for rel, p in named).encode("utf-8")
 
 
 def write_sha256_list(path: str | Path, roots: Sequence[str | Path], base: str | Path = ".") -> Path:

@@ -38,6 +38,15 @@ def _first_nul_run(path: Path, size: int) -> int | None:
     return None if at < 0 else at
 
 
+def _refuse_nul_tail(path: Path, size: int, nul: int | None) -> None:
+    """Raise for a text file whose bytes from ``nul`` on are a NUL-filled tail (None: none)."""
+    if nul is not None:
+        raise RawFormatError(path, "text data", (
+            f"{_mb(size - nul)} from byte {nul} on that start with {NUL_RUN} NUL bytes in a row "
+            f"(a preallocated or sparse file: {_mb(nul)} of it is data; keep the first {nul} bytes "
+            "in a copy, raw/ stays as it is)"))
+
+
 def _mb(n: int) -> str:
     return f"{n / 1e6:.1f} MB"
 
@@ -63,17 +72,15 @@ def read_file_bytes(path: Path, text: bool = True) -> bytes:
         raise RawFormatError(path, "a readable data file", kind)
     try:
         size = os.stat(path).st_size
-        if text and size:
-            nul = _first_nul_run(Path(path), size)
-            if nul is not None:
-                raise RawFormatError(path, "text data", (
-                    f"{_mb(size - nul)} from byte {nul} on that start with {NUL_RUN} NUL bytes in a row "
-                    f"(a preallocated or sparse file: {_mb(nul)} of it is data; keep the first {nul} bytes "
-                    "in a copy, raw/ stays as it is)"))
-        if size > MAX_FILE_BYTES:
+        if size > MAX_FILE_BYTES:  # not read: a NUL tail is looked for in a memory map
+            if text:
+                _refuse_nul_tail(path, size, _first_nul_run(Path(path), size))
             raise RawFormatError(path, f"a device file of at most {_mb(MAX_FILE_BYTES)} (about 8 million "
                                  "lines, 15 h at 150 Hz)", f"{_mb(size)}: split it into recordings")
         data = path.read_bytes()
+        if text:
+            at = data.find(b"\0" * NUL_RUN)
+            _refuse_nul_tail(path, len(data), None if at < 0 else at)
     except FileNotFoundError:
         raise RawFormatError(path, "a readable data file", "no such file") from None
     except OSError as exc:
