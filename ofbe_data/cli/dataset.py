@@ -15,12 +15,11 @@ from __future__ import annotations
 
 import argparse
 import os
-import shutil
 import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from ofbe_data.core.cli import add_jobs, add_params, add_scheduler, command, fail
+from ofbe_data.core.cli import add_jobs, add_params, add_scheduler, command, fail, io_failure
 from ofbe_data.core.errors import ConfigError, OfbeError
 from ofbe_data.dataset.build import build_dataset, dataset_params_from
 from ofbe_data.dataset.export import export_dataset
@@ -97,24 +96,12 @@ def _build(args: argparse.Namespace) -> int:
     except OfbeError as exc:
         return fail(PROG, str(exc), 1)
     except OSError as exc:
-        return fail(PROG, _io_failure(exc, out, "the dataset could not be written"), 1)
+        return io_failure(PROG, exc, out, "the dataset could not be written")
     if not args.quiet:
         print(f"ofbe-dataset: {result.n_windows} windows from {result.n_recordings} recordings "
               f"({len(result.excluded)} too short), protocols {', '.join(result.protocols)} -> {result.path}",
               file=sys.stderr)
     return 0
-
-
-def _io_failure(exc: OSError, out: Path, what: str) -> str:
-    """One line for a failed write (a full disk, an I/O error): the file, the error, the free
-    space where it was going, and that nothing partial was kept."""
-    where = next((p for p in (out, *out.parents) if p.exists()), Path("."))
-    try:
-        free = f"{shutil.disk_usage(where).free / 1e6:.1f} MB free on {where}'s disk"
-    except OSError:
-        free = "free space unknown"
-    return (f"{exc.filename or out}: {exc.strerror or exc} ({free}): {what}; nothing partial is kept, "
-            "free space and rerun")
 
 
 @command(PROG)
@@ -138,7 +125,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except OfbeError as exc:
         return fail(PROG, str(exc), 1)
     except OSError as exc:
-        return fail(PROG, _io_failure(exc, Path(args.out or args.path), "the export could not be written"), 1)
+        return io_failure(PROG, exc, args.out or args.path, "the export could not be written")
 
 
 if __name__ == "__main__":  # pragma: no cover

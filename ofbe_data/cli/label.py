@@ -14,7 +14,7 @@ from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
 
-from ofbe_data.core.cli import add_jobs, add_params, add_scheduler, command, fail
+from ofbe_data.core.cli import add_jobs, add_params, add_scheduler, command, fail, io_failure
 from ofbe_data.core.errors import OfbeError
 from ofbe_data.labelling.batch import (
     check_output_folder,
@@ -75,8 +75,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except OfbeError as exc:  # the Dask scheduler cannot be reached
         return fail(PROG, str(exc), 1)
     except OSError as exc:
-        return fail(PROG, f"{exc.filename or args.out}: {exc.strerror or exc}: the labels could not be "
-                          "written (every file is written whole or not at all; free space and rerun)", 1)
+        return io_failure(PROG, exc, args.out, "the labels could not be written")
     failed = [o for o in outcomes if o.error]
     for o in failed:
         stale = (f" (removed its labels of an earlier run: {', '.join(map(str, o.removed))})"

@@ -6,7 +6,7 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-from ofbe_data.core.cli import EXIT_DATA, EXIT_USAGE, add_jobs, add_scheduler, command, fail
+from ofbe_data.core.cli import EXIT_DATA, EXIT_USAGE, add_jobs, add_scheduler, command, fail, io_failure
 from ofbe_data.core.errors import OfbeError
 from ofbe_data.core.scheduler import SchedulerError, TaskError
 
@@ -55,7 +55,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except OfbeError as exc:
         return fail(parser.prog, str(exc), EXIT_USAGE)
     except OSError as exc:
-        return fail(parser.prog, f"{exc.filename or args.out}: {exc.strerror or exc}", EXIT_USAGE)
+        return io_failure(parser.prog, exc, args.out, "the campaign could not be written")
     print(f"{result.folder}: campaign {result.campaign}, seed {result.seed}, "
           f"{result.sessions} sessions, {result.files} files, {result.bytes / 1e6:.1f} MB")
     return 0

@@ -40,6 +40,11 @@ def write_bytes_atomic(path: str | Path, data: bytes) -> None:
             fh.write(data)
         _default_mode(Path(tmp), directory=False)
         os.replace(tmp, path)
+    except OSError as exc:
+        Path(tmp).unlink(missing_ok=True)
+        if exc.filename is None:  # a write on the descriptor names no file: name the target
+            raise OSError(exc.errno, exc.strerror, str(path)) from exc
+        raise
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise

@@ -4,17 +4,22 @@
 Every command (``ofbe_data.cli.*``, ``ofbe_model.cli.*``) is a ``main(argv) -> int`` that
 parses its arguments, calls its wing, and turns an expected error into one line on stderr,
 ``<prog>: error: <message>``, and an exit status: :data:`EXIT_OK`, :data:`EXIT_DATA` (the
-input data are bad or the work failed) or :data:`EXIT_USAGE` (the command line or a
-parameter file is wrong).
+input data are bad or the work failed), :data:`EXIT_USAGE` (the command line or a
+parameter file is wrong), :data:`EXIT_IO` (an output could not be written: a full disk, an
+I/O error) or :data:`EXIT_INTERRUPTED` (Ctrl-C).
 """
 
 from __future__ import annotations
 
 import argparse
+import errno
 import functools
 import os
+import re
+import shutil
 import sys
 from collections.abc import Callable
+from pathlib import Path
 from types import ModuleType
 from typing import Any
 
@@ -31,10 +36,65 @@ VERBOSE_ENV = "OFBE_VERBOSE"
 
 EXIT_INTERRUPTED = 130
 """Stopped by Ctrl-C (128 + SIGINT, as shells report it)."""
+EXIT_IO = 74
+"""An output could not be written (a full disk, a quota, an I/O error): sysexits' ``EX_IOERR``."""
+WRITE_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.EFBIG})
+"""The ``errno`` values of a failed write that the commands report as :data:`EXIT_IO`."""
+
+
+def is_write_failure(exc: BaseException) -> bool:
+    """Whether ``exc`` is a failed write: an ``OSError`` whose errno is in :data:`WRITE_ERRNOS`."""
+    return isinstance(exc, OSError) and exc.errno in WRITE_ERRNOS
+
+
+def io_failure(prog: str, exc: OSError, out: str | Path | None, what: str) -> int:
+    """Report a file-system error in one line and return the exit status.
+
+    The line names the file (``exc.filename``, else ``out``), the system's reason, and that
+    nothing partial was kept (every writer of the toolkit writes a file or folder under a
+    temporary name and removes it on failure). A failed write (:func:`is_write_failure`)
+    also gives the free space on the disk it was going to, and returns :data:`EXIT_IO`; any
+    other ``OSError`` (a permission, a missing folder) :data:`EXIT_DATA`.
+
+    Parameters
+    ----------
+    prog
+        The command's name.
+    exc
+        The error.
+    out
+        The output the command was writing, when ``exc`` names no file.
+    what
+        What could not be written, e.g. ``"the labels could not be written"``.
+    """
+    target = Path(exc.filename) if exc.filename else Path(out or ".")
+    where = next((p for p in (target, *target.parents) if p.exists()), Path("."))
+    target = public_path(target)
+    reason = exc.strerror or str(exc)
+    if not is_write_failure(exc):
+        return fail(prog, f"{target}: {reason}: {what}; nothing partial is kept", EXIT_DATA)
+    if "free on its disk" not in reason:
+        try:
+            reason += f" ({shutil.disk_usage(where).free / 1e6:.1f} MB free on its disk)"
+        except OSError:
+            reason += " (free space unknown)"
+    return fail(prog, f"{target}: {reason}: {what}; nothing partial is kept, free space and rerun", EXIT_IO)
+
+
+_TEMPORARY = re.compile(r"\.(.+)\.[A-Za-z0-9_]{8}\.tmp")
+"""A temporary name of ``core.atomic`` (``mkstemp``/``mkdtemp``: ``.<name>.<8 characters>.tmp``)."""
+
+
+def public_path(path: Path) -> Path:
+    """``path`` with each temporary name of :mod:`ofbe_data.core.atomic` replaced by the name it
+    was to be given (``out/.ds.k2j4x8q1.tmp/windows.h5`` → ``out/ds/windows.h5``): what a user
+    looks for, since the temporary folder is removed on failure."""
+    return Path(*[m.group(1) if (m := _TEMPORARY.fullmatch(part)) else part for part in path.parts])
 
 
 def command(prog: str) -> Callable[[Callable[..., int]], Callable[..., int]]:
-    """Decorate a command's ``main``: Ctrl-C prints one line and exits 130, no traceback.
+    """Decorate a command's ``main``: Ctrl-C prints one line and exits 130, a failed write
+    (:func:`is_write_failure`) one line and 74, no traceback.
 
     Files are written atomically everywhere, so an interrupted run leaves whole files or none.
     """
@@ -47,6 +107,10 @@ def command(prog: str) -> Callable[[Callable[..., int]], Callable[..., int]]:
                 print(f"{prog}: interrupted; files already written are whole, nothing partial is left",
                       file=sys.stderr)
                 return EXIT_INTERRUPTED
+            except OSError as exc:  # a write that no command-specific handler caught
+                if not is_write_failure(exc):
+                    raise
+                return io_failure(prog, exc, None, "the output could not be written")
             except MemoryError:
                 return fail(prog, "ran out of memory (is a length or size parameter far too large?); "
                                   "nothing partial was written", EXIT_DATA)

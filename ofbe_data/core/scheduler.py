@@ -30,6 +30,7 @@ import multiprocessing
 import os
 import pickle
 import re
+import signal
 import threading
 import time
 import uuid
@@ -283,6 +284,28 @@ def _quiet(verbose: bool) -> Iterator[_DeathLog]:
 
 
 @contextlib.contextmanager
+def _children_ignore_ctrl_c() -> Iterator[None]:
+    """Start processes that leave Ctrl-C to this one.
+
+    A terminal sends SIGINT to every process of the foreground group, the embedded cluster's
+    worker processes included, and each would print its own ``KeyboardInterrupt`` traceback.
+    A signal ignored at ``exec`` stays ignored in the child (Python then installs no handler
+    of its own), so the workers started inside this block ignore Ctrl-C, and this process,
+    which gets it too, closes them (one line, exit 130, from ``core.cli.command``). A worker
+    started later (after a death) ignores it through the preload :mod:`ofbe_data.core.worker_signals`.
+    A Ctrl-C in the second the cluster takes to start is ignored: press it again.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield  # handlers can only be set from the main thread
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+@contextlib.contextmanager
 def dask_client(scheduler: str, jobs: int, worker_env: Mapping[str, str] | None = None,
                 retries: int = DEFAULT_RETRIES, verbose: bool = False) -> Iterator[tuple[Any, _DeathLog]]:
     """A Dask client for one run: an embedded LocalCluster (``dask``) or a running cluster.
@@ -322,15 +345,17 @@ def dask_client(scheduler: str, jobs: int, worker_env: Mapping[str, str] | None 
                               "distributed.worker.daemon": False}
     if scheduler == DASK:
         config["distributed.comm.timeouts.connect"] = _LOCAL_CONNECT_TIMEOUT
+        config["distributed.worker.preload"] = ["ofbe_data.core.worker_signals"]
     level = logging.WARNING if verbose else logging.CRITICAL
     with dask.config.set(config), _quiet(verbose) as deaths, contextlib.ExitStack() as stack:
         if scheduler == DASK:
             env = {"env": dict(worker_env)} if worker_env else {}
             # no dashboard; the scheduler's HTTP server (metrics) on a free port, not on 8787,
             # where another cluster would make Dask warn on the terminal
-            cluster = stack.enter_context(distributed.LocalCluster(
-                n_workers=jobs, threads_per_worker=1, processes=True, dashboard_address=None,
-                silence_logs=level, scheduler_kwargs={"dashboard_address": ":0"}, **env))
+            with _children_ignore_ctrl_c():
+                cluster = stack.enter_context(distributed.LocalCluster(
+                    n_workers=jobs, threads_per_worker=1, processes=True, dashboard_address=None,
+                    silence_logs=level, scheduler_kwargs={"dashboard_address": ":0"}, **env))
             client = stack.enter_context(distributed.Client(cluster))
         else:
             try:

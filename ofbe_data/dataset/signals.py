@@ -109,10 +109,12 @@ def _write_one(h5_path: Path, out: Path, rows: pa.Table, schema: pa.Schema, wind
                     writer.write_table(pa.Table.from_arrays(arrays, schema=schema),
                                        row_group_size=SIGNAL_ROW_GROUP)
         os.replace(tmp, out)
-    except OSError as exc:  # an unreadable HDF5 file, or a full disk
+    except OSError as exc:
         tmp.unlink(missing_ok=True)
-        raise DatasetError(out, f"{out.name} written from the X of {h5_path}", f"an I/O error ({exc})") \
-            from exc
+        if exc.errno is not None:  # a failed write (a full disk): the commands report it as such
+            raise
+        raise DatasetError(out, f"{out.name} written from the X of {h5_path}",
+                           f"an unreadable file ({exc})") from exc
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise

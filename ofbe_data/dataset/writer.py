@@ -4,9 +4,9 @@ the signal Parquet file(s) copied from the finished HDF5 file(s) and the package
 
 from __future__ import annotations
 
+import errno
 import io
 import json
-import os
 import shutil
 import sys
 from collections.abc import Mapping, Sequence
@@ -49,8 +49,8 @@ _MERGE_BLOCKS = 256  # metadata blocks merged into one array per column, to boun
 # Validation of appended metadata
 
 
-FREE_SPACE_RESERVE = 16 * 2**20
-"""Bytes kept free beyond what the next write needs (HDF5 metadata, the Parquet, the card)."""
+FREE_SPACE_RESERVE = 2**20
+"""Bytes kept free beyond the next HDF5 or signal file (for the index Parquet and the card)."""
 
 def _as_strings(col: pd.Series, name: str, path: Path) -> np.ndarray:
     values = col.tolist()
@@ -210,17 +210,22 @@ class WindowWriter:
             for X, meta in blocks:          # e.g. one recording at a time
                 writer.append(X, meta)
 
-    ``X`` goes to the HDF5 file at once and is not kept; only the (small) metadata is held
-    until the end. On a clean exit the writer completes the HDF5 file (``y`` and ``meta/``),
+    The open HDF5 file is built in memory (HDF5's ``core`` driver, no backing store): ``X``
+    is compressed into it at once and the raw block is not kept, so the writer holds one
+    file's compressed image and the (small) metadata. A completed file's image is written to
+    disk in one atomic write (temporary name, then rename), after checking that its disk has
+    room for it: a full disk is then a Python ``OSError`` on a plain write, never HDF5 failing
+    to close a half-written file (which can crash the process), and nothing partial is left.
+    On a clean exit the writer completes the HDF5 file (``y`` and ``meta/``),
     writes ``windows.parquet``, the signal Parquet file(s) (:func:`write_signal_files`, reading
     the HDF5 file(s) back one row group at a time) and then :func:`write_package_files`. On an
-    exception it closes the HDF5 file, removes its temporary name and re-raises; the caller
-    discards the folder.
+    exception it drops the in-memory file and re-raises; the caller discards the folder.
 
     With ``shard_windows`` = S, the (S+1)-th window starts a new file: the full one is completed
-    (``y``, ``meta/`` of its rows, the shard attributes), closed and named ``windows-00000.h5``,
-    and so on; blocks that straddle a boundary are split. At most one shard file is open, and
-    no X is held. A dataset of at most S windows is written exactly as without sharding.
+    (``y``, ``meta/`` of its rows, the shard attributes), written as ``windows-00000.h5``,
+    and so on; blocks that straddle a boundary are split. At most one shard is in memory. A
+    dataset of at most S windows is written exactly as without sharding. The bytes are those
+    HDF5 writes to a disk file (``libver="earliest"``: the image is the file).
 
     Parameters
     ----------
@@ -244,7 +249,7 @@ class WindowWriter:
         self.shard_windows = None if shard_windows is None else int(shard_windows)
         self._h5_path = self.folder / H5_NAME
         self._parquet_path = self.folder / PARQUET_NAME
-        self._tmp_h5 = self.folder / f".{H5_NAME}.partial"
+        self._mem_name = f"{self.folder / H5_NAME}.in-memory"  # never created on disk
         self._file: h5py.File | None = None
         self._x: h5py.Dataset | None = None
         self._closed: list[dict[str, np.ndarray]] = []  # metadata of the completed shards
@@ -280,7 +285,7 @@ class WindowWriter:
     def _open(self) -> None:
         """Create the next HDF5 file under its temporary name, with the root attributes and X."""
         t = self.info.window_length
-        self._file = h5py.File(self._tmp_h5, "w", libver=H5_LIBVER)
+        self._file = h5py.File(self._mem_name, "w", libver=H5_LIBVER, driver="core", backing_store=False)
         try:
             _set_attrs(self._file, _root_attrs(self.info))
             self._x = self._file.create_dataset(
@@ -293,15 +298,19 @@ class WindowWriter:
             self._abort()
             raise
 
-    def _need_space(self, nbytes: int, what: str) -> None:
-        """Refuse, before HDF5 sees a full disk (it may then crash the process), when the
-        folder's file system has less than ``nbytes`` plus :data:`FREE_SPACE_RESERVE` free."""
+    def _need_space(self, path: Path, nbytes: int, what: str) -> None:
+        """Refuse to begin a write of ``nbytes`` when the folder's disk has less than that plus
+        :data:`FREE_SPACE_RESERVE` free.
+
+        Raises
+        ------
+        OSError
+            ``ENOSPC``, naming ``path`` and both sizes (the commands report it as a failed write).
+        """
         free = shutil.disk_usage(self.folder).free
         if free < nbytes + FREE_SPACE_RESERVE:
-            need = (nbytes + FREE_SPACE_RESERVE) / 2**20
-            raise DatasetError(self._h5_path, f"{need:.0f} MiB of free space for {what}",
-                               f"{free / 2**20:.0f} MiB free on its disk (nothing was kept: free space, "
-                               "or build elsewhere with --out, and rerun)")
+            raise OSError(errno.ENOSPC, f"expected {(nbytes + FREE_SPACE_RESERVE) / 1e6:.1f} MB free for "
+                                        f"{what}, found {free / 1e6:.1f} MB free on its disk", str(path))
 
     def append(self, X: np.ndarray, meta: pd.DataFrame) -> None:
         """Append n windows.
@@ -340,7 +349,6 @@ class WindowWriter:
         n = arr.shape[0]
         if n == 0:
             return
-        self._need_space(x32.nbytes, f"{n} more windows")
         done = 0
         while done < n:
             if self.shard_windows is not None and self._shard_n == self.shard_windows:
@@ -377,12 +385,10 @@ class WindowWriter:
     def _next_shard(self) -> None:
         """Complete the full open file as a shard and open the next one."""
         cols = self._shard_cols(sharded=True)
-        self._need_space(2 * sum(v.nbytes for v in cols.values()), "a shard's labels and metadata")
         self._complete(cols, sharded=True)
         self._closed.append(cols)
         self._shard += 1
         self._shard_n = 0
-        self._tmp_h5 = self.folder / f".{shard_name(self._shard)}.partial"
         self._open()
 
     def _complete(self, cols: Mapping[str, np.ndarray], sharded: bool) -> None:
@@ -414,10 +420,14 @@ class WindowWriter:
         if sharded:
             _set_attrs(f, {"shard": np.int64(self._shard), "shard_windows": np.int64(self.shard_windows),
                            "first_window_id": np.int64(cols["window_id"][0])})
+        f.flush()
+        image = f.id.get_file_image()
         f.close()
         self._file = None
         self._x = None
-        os.replace(self._tmp_h5, self.folder / (shard_name(self._shard) if sharded else H5_NAME))
+        target = self.folder / (shard_name(self._shard) if sharded else H5_NAME)
+        self._need_space(target, len(image), f"{target.name} ({n} windows)")
+        write_bytes_atomic(target, image)
 
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
                  tb: object) -> None:
@@ -438,7 +448,6 @@ class WindowWriter:
                 pass
         self._file = None
         self._x = None
-        self._tmp_h5.unlink(missing_ok=True)
 
     def _finish(self) -> None:
         if self._file is None:
@@ -449,8 +458,6 @@ class WindowWriter:
         last = self._shard_cols(sharded)
         cols = _merge([*self._closed, last]) if sharded else last
         _check_recordings(cols, self._parquet_path)
-        self._need_space(2 * sum(v.nbytes for v in cols.values()) + 3 * 8 * len(last["window_id"]),
-                         "the labels and metadata")
         self._complete(last, sharded)
         shards = None
         if sharded:
@@ -466,6 +473,7 @@ class WindowWriter:
             {b"ofbe": json.dumps(_parquet_provenance(self.info, shards), allow_nan=False).encode()})
         write_bytes_atomic(self._parquet_path, _parquet_bytes(table))
         h5_bytes = sum(p.stat().st_size for p in self.folder.glob("windows*.h5"))
-        self._need_space(h5_bytes, "the signal Parquet files (about the size of the HDF5 files)")
+        self._need_space(self.folder / "signals.parquet", h5_bytes,
+                         "the signal Parquet files (about the size of the HDF5 files)")
         write_signal_files(self.folder)
         write_package_files(self.folder, self.info)

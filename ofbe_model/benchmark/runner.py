@@ -126,11 +126,89 @@ def _estimators(method: str, split: Split, protocol: str, params: BenchmarkParam
     return [(0, make_estimator(name, **kwargs), False)]
 
 
+class _Rows:
+    """Rows ``rows`` of an array, indexed lazily: ``_Rows(X, rows)[k]`` is ``X[rows[k]]``."""
+
+    def __init__(self, x: Any, rows: np.ndarray) -> None:
+        self._x, self._rows = x, rows
+
+    def __getitem__(self, k: np.ndarray) -> np.ndarray:
+        return np.asarray(self._x[self._rows[k]])
+
+
 def _per_window(est: Estimator, fitted: bool) -> bool:
     """Whether an estimator's predictions need no fold: no training, and each window's
     estimate from that window and its meta row alone (the class says so with
     ``per_window = True``, as the physics estimators do)."""
     return not fitted and not est.needs_fit and bool(getattr(est, "per_window", False))
+
+
+class WindowCache:
+    """Estimates of the per-window estimators, kept across protocols (and datasets) of one run.
+
+    A per-window estimator's estimate of a window depends on that window, its meta row and the
+    estimator's parameters only (:func:`_per_window`), so a window that two protocols test (the
+    gravity-aligned set under ``paper-gravity`` and ``grouped``) is solved once. The key is
+    the dataset's content (its ``SHA256SUMS``, which hashes every file), the registered
+    estimator and its parameters, and the ``window_id``.
+
+    Attributes
+    ----------
+    solved, reused
+        Windows solved and windows taken from the cache, over the cache's life.
+    """
+
+    def __init__(self) -> None:
+        self._store: dict[tuple[str, str], dict[int, tuple[np.ndarray, np.ndarray]]] = {}
+        self.solved = 0
+        self.reused = 0
+
+    @staticmethod
+    def dataset_key(path: Path) -> str:
+        """The dataset's content: its ``SHA256SUMS`` (its path when it has none)."""
+        sums = path / "SHA256SUMS"
+        return sums.read_text(encoding="utf-8") if sums.is_file() else str(path.resolve())
+
+    def predict(self, dataset: str, estimator: str, est: Estimator, window_ids: np.ndarray,
+                windows: Any, meta: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
+        """Estimates and standard deviations of the windows ``window_ids`` (rows of ``windows``
+        and ``meta`` in that order), solving only those not yet in the cache.
+
+        Parameters
+        ----------
+        dataset
+            :meth:`dataset_key` of the dataset.
+        estimator
+            The registered estimator and its parameters, as text.
+        est
+            The estimator (per-window, unfitted).
+        window_ids
+            (N,) int.
+        windows
+            Indexable by a row array: (N, T, 3) m/s² (read only for the rows solved).
+        meta
+            N rows, the estimator's inputs.
+
+        Returns
+        -------
+        (yhat, std)
+            (N, 3) float64 each.
+        """
+        known = self._store.setdefault((dataset, estimator), {})
+        missing = np.array([i for i, w in enumerate(window_ids) if int(w) not in known], dtype=np.int64)
+        if missing.size:
+            yhat, std = _predict(est, windows[missing], meta.iloc[missing].reset_index(drop=True))
+            for k, i in enumerate(missing):
+                known[int(window_ids[i])] = (yhat[k], std[k])
+        self.solved += int(missing.size)
+        self.reused += int(len(window_ids) - missing.size)
+        rows = [known[int(w)] for w in window_ids]
+        return (np.array([r[0] for r in rows], dtype=np.float64).reshape(-1, 3),
+                np.array([r[1] for r in rows], dtype=np.float64).reshape(-1, 3))
+
+
+PROCESS_CACHE = WindowCache()
+"""The cache :func:`run_protocol` uses unless given one: keyed by content, so it is never stale."""
 
 
 def _predict(est: Estimator, windows: np.ndarray, meta: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
@@ -143,7 +221,7 @@ def _predict(est: Estimator, windows: np.ndarray, meta: pd.DataFrame) -> tuple[n
 
 def run_protocol(dataset: str | Path, protocol: str, params: BenchmarkParams | None = None, *,
                  models_dir: str | Path | None = None, truth_dir: str | Path | None = None,
-                 progress: bool = True, scheduler: str = "processes",
+                 progress: bool = True, scheduler: str = "processes", cache: WindowCache | None = None,
                  ) -> tuple[pd.DataFrame, dict[str, float]]:
     """Predict every test signal of every fold with every method.
 
@@ -167,6 +245,10 @@ def run_protocol(dataset: str | Path, protocol: str, params: BenchmarkParams | N
         the pipeline can pass it, but the runner does not parallelise: every fold and method
         runs in this process, one after the other (the physics estimators solve all test
         windows of a fold at once instead), so the value changes nothing.
+    cache
+        Per-window estimates kept from earlier calls (other protocols of the same dataset);
+        :data:`PROCESS_CACHE` when None (the benchmark stage runs every protocol in one
+        process). The results are the same with or without it.
 
     Returns
     -------
@@ -193,6 +275,9 @@ def run_protocol(dataset: str | Path, protocol: str, params: BenchmarkParams | N
     # call (their batched solvers then work on all of them at once) and each fold takes its rows
     every_test = np.unique(np.concatenate([sp.test for sp in splits])) if splits else np.zeros(0, int)
     shared: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    cache = cache if cache is not None else PROCESS_CACHE
+    content = WindowCache.dataset_key(Path(dataset))
+    window_ids = meta["window_id"].to_numpy()
     for split in splits:
         y_test = ds.y[split.test]
         # the fold's windows and tables, taken once for every method
@@ -204,8 +289,12 @@ def run_protocol(dataset: str | Path, protocol: str, params: BenchmarkParams | N
             for seed, est, fitted in _estimators(method, split, protocol, params, models, truth):
                 if _per_window(est, fitted):
                     if method not in shared:
-                        shared[method] = _predict(est, ds.X[every_test],
-                                                  blind.iloc[every_test].reset_index(drop=True))
+                        kwargs = params.estimator_params.get(method, {})
+                        what = json.dumps({"estimator": str(kwargs.get("estimator", method)), **kwargs},
+                                          sort_keys=True, default=str)
+                        shared[method] = cache.predict(content, what, est, window_ids[every_test],
+                                                       _Rows(ds.X, every_test),
+                                                       blind.iloc[every_test].reset_index(drop=True))
                     at = np.searchsorted(every_test, split.test)
                     yhat, std = shared[method][0][at], shared[method][1][at]
                 else:

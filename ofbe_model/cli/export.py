@@ -46,7 +46,7 @@ from ofbe_data.calibration.noise import RawFiles, attach_raw_times, gyro_noise_o
 from ofbe_data.calibration.results import CalibrationResult, CalibrationSourceError, Collected, load_results
 from ofbe_data.calibration.store import CalibrationStoreError, store_path
 from ofbe_data.core.atomic import atomic_directory, write_bytes_atomic
-from ofbe_data.core.cli import EXIT_DATA, EXIT_OK, EXIT_USAGE, command, fail
+from ofbe_data.core.cli import EXIT_DATA, EXIT_OK, EXIT_USAGE, command, fail, io_failure
 from ofbe_data.core.errors import OfbeError, OutputExistsError
 
 PROG = "ofbe-export"
@@ -431,8 +431,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except OfbeError as exc:
         return fail(PROG, str(exc), EXIT_DATA)
     except OSError as exc:
-        return fail(PROG, f"{exc.filename or args.out}: {exc.strerror or exc}: nothing partial was written",
-                    EXIT_DATA)
+        return io_failure(PROG, exc, args.out, "the export could not be written")
     for path in written:
         print(path)
     print(f"{PROG}: {args.format}: {len(files)} result file{'s' if len(files) != 1 else ''} written",

@@ -386,8 +386,10 @@ class OFBENet(Estimator):
             raise EstimatorError(f"windows: expected windows of {t} samples (what the model was trained on), "
                                  f"found {x.shape[1]}")
         out = np.empty((x.shape[0], 3), dtype=np.float64)
+        # called eagerly: the same kernels and numbers as predict_on_batch (checked bit for bit),
+        # without tracing a graph for each loaded model (the benchmark loads one per fold and seed)
         for s in _batches(x.shape[0], EVAL_BATCH):
-            out[s] = np.asarray(model.predict_on_batch(x[s]), dtype=np.float64)
+            out[s] = np.asarray(model(x[s], training=False), dtype=np.float64)
         return out
 
     # -- persistence ------------------------------------------------------------------------

@@ -270,7 +270,8 @@ def _write(path: Path, text: str) -> Path:
     return path
 
 
-def test_a_full_disk_is_refused_before_hdf5_sees_it(campaigns, tmp_path, capsys, monkeypatch) -> None:
+def test_a_full_disk_is_refused_before_the_file_is_written(campaigns, tmp_path, capsys, monkeypatch) -> None:
+    """The free-space check before each file (tests/ofbe_data/test_full_disks.py fills real disks)."""
     import collections
 
     from ofbe_data.dataset import writer
@@ -282,10 +283,10 @@ def test_a_full_disk_is_refused_before_hdf5_sees_it(campaigns, tmp_path, capsys,
                              str(campaigns / "raw" / "ga"), "--out", str(out), "--window-length", str(T),
                              "--stride", str(T), "--quiet"])
     err = capsys.readouterr().err
-    assert code == 1 and err.count("\n") == 1
-    assert re.fullmatch(r"ofbe-dataset: error: \S+windows\.h5: expected 16 MiB of free space for 3 more "
-                        r"windows, found 1 MiB free on its disk \(nothing was kept: free space, or build "
-                        r"elsewhere with --out, and rerun\)\n", err), err
+    assert code == 74 and err.count("\n") == 1  # EX_IOERR
+    assert re.fullmatch(re.escape(f"ofbe-dataset: error: {out}/windows.h5: expected ") + r"\d\.\d MB free for "
+                        r"windows\.h5 \(120 windows\), found 1\.0 MB free on its disk: the dataset could not be "
+                        r"written; nothing partial is kept, free space and rerun\n", err), err
     assert not out.exists() and not any(tmp_path.glob(".out*"))
 
 

@@ -296,11 +296,11 @@ def test_a_full_disk_during_export_is_one_line_and_leaves_nothing(tmp_path: Path
 
     monkeypatch.setattr(export_module.shutil, "copyfile", full)
     out = tmp_path / "exported"
-    assert dataset_main(["export", str(built), "--out", str(out)]) == 1
+    assert dataset_main(["export", str(built), "--out", str(out)]) == 74  # EX_IOERR
     line = _one_line(capsys.readouterr().err)
-    assert re.search(r"ofbe-dataset: error: .*: No space left on device \(\d+\.\d MB free on .*'s disk\): "
-                     r"the export could not be written; nothing partial is kept, free space and rerun$",
-                     line), line
+    assert re.fullmatch(re.escape(f"ofbe-dataset: error: {out}/") + r"[\w.-]+: No space left on device "
+                        r"\(\d+\.\d MB free on its disk\): the export could not be written; nothing partial "
+                        r"is kept, free space and rerun", line), line
     assert not out.exists() and [p.name for p in tmp_path.iterdir() if p.name.startswith(".exported")] == []
 
 

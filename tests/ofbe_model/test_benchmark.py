@@ -8,6 +8,7 @@ import re
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from ofbe_data.dataset.build import DatasetParams, build_dataset
@@ -16,7 +17,7 @@ from ofbe_data.labelling.labels import LabelParams
 from ofbe_data.simulator import load_config, simulate_campaign
 from ofbe_model import predict as predict_cli
 from ofbe_model.benchmark.report import summarise, write_report
-from ofbe_model.benchmark.runner import BenchmarkParams, run_protocol
+from ofbe_model.benchmark.runner import BenchmarkParams, WindowCache, run_protocol
 from ofbe_model.cli import benchmark as benchmark_cli
 from ofbe_model.cli.predict import main as predict_main
 from ofbe_model.estimators.base import EstimatorError
@@ -86,6 +87,31 @@ def test_paper_rotated_tests_nine_signals_per_fold_and_device(rotated) -> None:
     tmp, ds = rotated
     pred, _ = run_protocol(ds, "paper-rotated", BenchmarkParams(methods=("level-mean",)), progress=False)
     assert pred.groupby(["dataset", "fold"]).size().tolist() == [9] * 10
+
+
+def test_a_window_two_protocols_test_is_solved_once_with_the_same_estimate(rotated, grouped_run) -> None:
+    """The per-window estimators' cache (issue 25): paper-rotated after grouped on the same dataset
+    solves nothing again, and every row is what a run with a cache of its own gives."""
+    tmp, ds = rotated
+    params = BenchmarkParams(methods=("ls-trf", "won2009", "gravity-prior", "oracle"))
+    cache = WindowCache()
+    truth = tmp / "raw" / "_truth"
+    first, _ = run_protocol(ds, "grouped", params, truth_dir=truth, progress=False, cache=cache)
+    solved = cache.solved
+    assert solved == 2 * 96 and cache.reused == 0  # ls-trf and won2009 (per window); the others are fitted
+    second, _ = run_protocol(ds, "paper-rotated", params, truth_dir=tmp / "raw" / "_truth", progress=False,
+                             cache=cache)
+    assert cache.solved == solved and cache.reused == 2 * second["window_id"].nunique()
+    alone, _ = run_protocol(ds, "paper-rotated", params, truth_dir=tmp / "raw" / "_truth", progress=False,
+                            cache=WindowCache())
+    pd.testing.assert_frame_equal(second, alone)
+    pd.testing.assert_frame_equal(first, run_protocol(ds, "grouped", params, truth_dir=tmp / "raw" / "_truth",
+                                                      progress=False, cache=WindowCache())[0])
+    # another parameter is another estimator: solved afresh
+    variant = BenchmarkParams(methods=("won2009-min-norm",),
+                              estimator_params={"won2009-min-norm": {"estimator": "won2009", "rcond": 0.01}})
+    run_protocol(ds, "grouped", variant, progress=False, cache=cache)
+    assert cache.solved == solved + 96
 
 
 def test_cli_errors(rotated, tmp_path, capsys) -> None:
