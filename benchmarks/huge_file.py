@@ -1,4 +1,5 @@
-"""Peak memory of ``ofbe-session check`` and ``ofbe-label`` on a 2 GB sparse file (issue 24).
+"""Peak memory of ``ofbe-session check``, ``ofbe-label`` and ``ofbe-session init`` on a 2 GB sparse
+file (issue 24).
 
 A logger that preallocates its file leaves a good log and then a tail of NUL bytes; before the
 bound of :mod:`ofbe_data.io.formats.filebytes` the two commands grew to about 24 GB on such a
@@ -40,9 +41,13 @@ def main() -> int:
         data = f.stat().st_size
         os.truncate(f, 2 * 2**30)
         print(f"{f.name}: {f.stat().st_size / 1e9:.2f} GB (sparse), data in its first {data} bytes")
+        loose = Path(tmp) / "loose"  # the file alone, as ofbe-session init finds it
+        loose.mkdir()
+        os.link(f, loose / f.name)
         for name, args in (("ofbe-session check", ["ofbe_data.cli.session", "check", str(session)]),
                            ("ofbe-label", ["ofbe_data.cli.label", str(session), "--out", str(Path(tmp) / "l"),
-                                           "--quiet"])):
+                                           "--quiet"]),
+                           ("ofbe-session init", ["ofbe_data.cli.session", "init", str(loose)])):
             peak, seconds, code = _measure(args)
             print(f"{name:<20} peak {peak:7.1f} MB   {seconds:6.2f} s   exit {code}")
     return 0

@@ -39,6 +39,7 @@ from ofbe_data.io.detect_time import TIME_SCALE, decide_time_unit, preamble_rate
 from ofbe_data.io.detect_units import DetectionError, decide_acc_unit, decide_gyro_unit, fmt_num
 from ofbe_data.io.device_options import BinOptions
 from ofbe_data.io.formats import read_device_file
+from ofbe_data.io.formats.filebytes import MAX_FILE_BYTES, read_file_bytes
 from ofbe_data.io.formats.mscip_bin import decode_mscip
 from ofbe_data.io.manifest import CsvMapping, DeviceSpec
 
@@ -335,6 +336,10 @@ def sniff_text(path: str | Path, hints: Hints = Hints()) -> Detection:  # noqa: 
     """
     path = Path(path)
     try:
+        if path.stat().st_size > MAX_FILE_BYTES:  # refused before it is read (bounded memory)
+            with open(path, "rb") as fh:
+                head = fh.read(4096)
+            read_file_bytes(path, text=b"\0" not in head)  # raises: a NUL-filled tail, or too large
         data = path.read_bytes()
     except OSError as exc:
         raise RawFormatError(path, "a readable file", exc.strerror or str(exc)) from None

@@ -630,6 +630,13 @@ def test_a_huge_sparse_file_is_refused_before_it_is_read(tmp_path: Path) -> None
         "as it is)"), line
     checked = _run(["ofbe_data.cli.session", "check", str(session)], timeout=120)
     assert checked.returncode == 1 and "preallocated or sparse file" in checked.stdout
+    loose = tmp_path / "loose"  # init on a folder of files (it read the file whole: 6.4 GB, 21 s)
+    loose.mkdir()
+    os.link(f, loose / f.name)
+    init = _run(["ofbe_data.cli.session", "init", str(loose)], timeout=120)
+    assert init.returncode == 1 and "Traceback" not in init.stderr
+    reason = line.split("sparkfun-1.csv", 1)[1]  # the same words as ofbe-label's
+    assert init.stderr.strip() == f"ofbe-session: error: {loose / f.name}{reason}", init.stderr
     assert f.stat().st_size == 2 * 2**30  # raw/ untouched
 
 
