@@ -278,7 +278,7 @@ def build_dataset(labels_dir: str | Path, raw_dir: str | Path, out_dir: str | Pa
                            "tilt_tolerance_deg": params.tilt_tolerance_deg} if p == "paper-rotated" else {})}
                    for p in protocols},
         licence=params.licence,
-        label_fidelity=label_fidelity(labels, truth_dir, maps=False) if simulated else None,
+        label_fidelity=label_fidelity(labels, truth_dir, maps=False, shares=False) if simulated else None,
         extra={"n_recordings": len(labels), "excluded_recordings": list(excluded),
                "excluded_reason": f"stationary segment shorter than one window ({w.window_length} samples)",
                "devices": sorted(labels["device"].unique().tolist())},

@@ -312,11 +312,26 @@ def _small_angle_section(page: _Page) -> list[str]:
 
 def _fidelity_table(fid: dict[str, Any]) -> list[str]:
     rows = [("apparent bias (label), RMS", "bias_rms_mg"), ("apparent bias (label), max", "bias_max_mg")]
+    if "reference_rms_mg" in fid:
+        rows += [("of it, the reference's own bias and scale, RMS", "reference_rms_mg"),
+                 ("the rest (the labeller's own error), RMS", "bias_own_rms_mg")]
+    if "bias_sensor_frame_rms_mg" in fid:
+        rows += [("apparent bias in the sensor's own axes, RMS", "bias_sensor_frame_rms_mg")]
     if "offset_rms_mg" in fid:
         rows += [("zero-g offset, RMS", "offset_rms_mg"), ("zero-g offset, max", "offset_max_mg")]
     out = ["| error | x (mg) | y (mg) | z (mg) |", "|---|---:|---:|---:|"]
     for name, key in rows:
         out.append(f"| {name} | " + " | ".join(f"{float(fid[key][a]):.4f}" for a in AXES) + " |")
+    if "reference_rms_mg" in fid:
+        out += ["", "A reference-based label takes gravity's direction from the reference's mean reading, "
+                "so the reference's own bias and scale errors (the truth's) tilt it: the second row is that "
+                "share, computed from the truth alone, the third what is left. No labelling from one window "
+                "per orientation removes the reference's share (docs/labelling.md, \"Label fidelity\")."]
+    if "bias_sensor_frame_rms_mg" in fid:
+        out += ["", "Multi-position labels have no reference: their gravity direction is in the sensor's "
+                "own axes, which the truth's apparent bias (in the nominal mount's axes) is not; the row "
+                "\"in the sensor's own axes\" compares like with like, the first two rows hold the mount "
+                "rotation no fit without a reference can see."]
     if "A_rms_ppm" in fid:
         out += ["", f"Fitted map A against the truth's ({fid['n_maps']} device fits, each entry): "
                 f"{fid['A_rms_ppm']:.1f} ppm RMS, {fid['A_max_ppm']:.1f} ppm at most."]
