@@ -26,10 +26,11 @@ from tqdm import tqdm
 from ofbe_data.core.atomic import atomic_directory
 from ofbe_data.core.errors import ConfigError, OfbeError, OutputExistsError
 from ofbe_data.core.parallel import iter_ordered
+from ofbe_data.dataset.chunks import Chunk
 from ofbe_data.dataset.fidelity import label_fidelity
 from ofbe_data.dataset.splits import PROTOCOLS, SplitParams, assign_folds
 from ofbe_data.dataset.store import DEFAULT_SHARD_WINDOWS, DatasetInfo, fold_column
-from ofbe_data.dataset.windows import WindowParams, iter_windows, n_windows, session_windows
+from ofbe_data.dataset.windows import SegmentError, WindowParams, iter_windows, n_windows, session_chunks
 from ofbe_data.dataset.writer import WindowWriter
 from ofbe_data.io.typedconfig import from_plain
 from ofbe_data.labelling.store import read_labels
@@ -158,16 +159,17 @@ class BuildResult:
     n_shards: int = 1
 
 
-def _session_task(args: tuple[Path, list[dict[str, Any]], WindowParams]) -> list[np.ndarray]:
-    return session_windows(*args)
+def _session_task(args: tuple[Path, list[dict[str, Any]], WindowParams]) -> list[list[Chunk]]:
+    return session_chunks(*args)
 
 
-def _windows(labels: pd.DataFrame, raw_dir: Path, params: WindowParams, jobs: int,
-             scheduler: str) -> Iterator[tuple[int, np.ndarray]]:
-    """:func:`~ofbe_data.dataset.windows.iter_windows` on ``scheduler``: the local process pool,
-    or Dask (sessions streamed in order, a bounded number in flight)."""
+def _chunks(labels: pd.DataFrame, raw_dir: Path, params: WindowParams, jobs: int,
+            scheduler: str) -> Iterator[tuple[int, list[Chunk]]]:
+    """Each label row's windows as stored HDF5 chunks, compressed in the workers
+    (:func:`~ofbe_data.dataset.windows.iter_windows` with ``compressed``) on ``scheduler``: the
+    local process pool, or Dask (sessions streamed in order, a bounded number in flight)."""
     if scheduler == "processes":
-        yield from iter_windows(labels, raw_dir, params, jobs=jobs)
+        yield from iter_windows(labels, raw_dir, params, jobs=jobs, compressed=True)
         return
     groups = [(raw_dir / str(session), list(frame.index), frame.to_dict("records"))
               for session, frame in labels.groupby("session", sort=False)]
@@ -283,20 +285,30 @@ def build_dataset(labels_dir: str | Path, raw_dir: str | Path, out_dir: str | Pa
                "excluded_reason": f"stationary segment shorter than one window ({w.window_length} samples)",
                "devices": sorted(labels["device"].unique().tolist())},
     )
-    carried = labels[list(_CARRIED)]
+    # every window's metadata at once (the windows per recording follow from the labels), checked
+    # once; the workers cut and compress the windows, the writer stores their chunks as they are
+    rows = np.repeat(np.arange(len(labels)), counts)
+    starts = np.concatenate([[0], np.cumsum(counts)])
+    meta = labels[list(_CARRIED)].iloc[rows].reset_index(drop=True)
+    window_index = np.arange(len(rows), dtype=np.int64) - np.repeat(starts[:-1], counts)
+    meta.insert(5, "window_index", window_index)
+    meta.insert(6, "start_sample", window_index * w.stride)
+    for p in protocols:
+        meta[fold_column(p)] = np.asarray(folds[p], dtype=np.int64)[rows]
     bar = tqdm(total=int(counts.sum()), desc=f"windows {campaign}", unit="window", file=sys.stderr,
                disable=not progress)
     total = 0
     with (atomic_directory(out_dir, replace=force) as tmp,
           WindowWriter(tmp, info, shard_windows=params.shard_windows) as writer):
-        for i, X in _windows(labels, raw_dir, w, jobs, scheduler):
-            k = X.shape[0]
-            meta = carried.iloc[[i] * k].reset_index(drop=True)
-            meta.insert(5, "window_index", np.arange(k, dtype=np.int64))
-            meta.insert(6, "start_sample", np.arange(k, dtype=np.int64) * w.stride)
-            for p in protocols:
-                meta[fold_column(p)] = np.full(k, folds[p][i], dtype=np.int64)
-            writer.append(X, meta)
+        cols = writer.normalise_meta(meta)
+        for i, chunks in _chunks(labels, raw_dir, w, jobs, scheduler):
+            k = len(chunks)
+            if k != counts[i]:
+                r = labels.iloc[i]
+                raise SegmentError(Path(raw_dir) / str(r["session"]) / str(r["raw_file"]),
+                                   f"{counts[i]} windows (from the label's {int(r['n_samples'])} samples)",
+                                   f"{k}")
+            writer.append_chunks(chunks, {c: v[starts[i]:starts[i + 1]] for c, v in cols.items()})
             total += k
             bar.update(k)
     bar.close()

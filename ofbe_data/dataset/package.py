@@ -102,12 +102,12 @@ def fold_sizes(meta: pd.DataFrame) -> dict[str, dict[str, Any]]:
 
 
 def _device_counts(meta: pd.DataFrame) -> dict[str, dict[str, int]]:
-    out = {}
-    for device in sorted(meta["device"].unique()):
-        sub = meta[meta["device"] == device]
-        out[str(device)] = {"recordings": int(len(sub[list(RECORDING_KEY)].drop_duplicates())),
-                            "windows": int(len(sub)), "power_cycles": int(sub["power_cycle"].nunique())}
-    return out
+    keys = list(dict.fromkeys([*RECORDING_KEY, "device"]))
+    by = meta.groupby("device", sort=False)
+    windows, cycles = by.size(), by["power_cycle"].nunique()
+    recordings = meta.drop_duplicates(keys).groupby("device", sort=False).size()
+    return {str(d): {"recordings": int(recordings[d]), "windows": int(windows[d]),
+                     "power_cycles": int(cycles[d])} for d in sorted(meta["device"].unique())}
 
 
 _LICENCES = {

@@ -25,6 +25,7 @@ import pandas as pd
 from numpy.lib.stride_tricks import sliding_window_view
 
 from ofbe_data.core.errors import OfbeError
+from ofbe_data.dataset.chunks import Chunk, compress_windows
 from ofbe_data.io.formats import read_device_file
 from ofbe_data.io.manifest import SessionManifest, load_manifest
 from ofbe_data.labelling.labels import sha256_file
@@ -159,12 +160,25 @@ def session_windows(session_dir: str | Path, rows: Sequence[Mapping[str, Any]],
     return [cut_windows(seg, params.window_length, params.stride).astype(np.float32) for seg in segments]
 
 
+def session_chunks(session_dir: str | Path, rows: Sequence[Mapping[str, Any]],
+                   params: WindowParams) -> list[list[Chunk]]:
+    """:func:`session_windows`, compressed where they are cut: per label row, one stored HDF5
+    chunk per window (:func:`ofbe_data.dataset.chunks.compress_windows`)."""
+    source = Path(session_dir)
+    return [compress_windows(x, source / str(row["raw_file"]))
+            for x, row in zip(session_windows(session_dir, rows, params), rows, strict=True)]
+
+
 def _session_job(args: tuple[Path, list[dict[str, Any]], WindowParams]) -> list[np.ndarray]:
     return session_windows(*args)
 
 
+def _session_chunks_job(args: tuple[Path, list[dict[str, Any]], WindowParams]) -> list[list[Chunk]]:
+    return session_chunks(*args)
+
+
 def iter_windows(labels: pd.DataFrame, raw_dir: str | Path, params: WindowParams, jobs: int = 1,
-                 ahead: int = 2) -> Iterator[tuple[int, np.ndarray]]:
+                 ahead: int = 2, compressed: bool = False) -> Iterator[tuple[int, Any]]:
     """Windows of every label row, session by session, streamed.
 
     Parameters
@@ -180,23 +194,28 @@ def iter_windows(labels: pd.DataFrame, raw_dir: str | Path, params: WindowParams
         Worker processes (1 reads in this process).
     ahead
         Sessions in flight per worker beyond the one being consumed: bounds memory.
+    compressed
+        Yield each row's windows as stored HDF5 chunks (:func:`session_chunks`: the workers
+        compress them) instead of samples.
 
     Yields
     ------
     (index, windows)
         ``index`` is the row's index label in ``labels``; ``windows`` is (k, T, 3) float32,
-        k possibly 0. Rows come in the order of ``labels``' sessions as first seen.
+        k possibly 0 (or k chunks with ``compressed``). Rows come in the order of ``labels``'
+        sessions as first seen.
     """
     raw_dir = Path(raw_dir)
     groups: list[tuple[Path, list[Any], list[dict[str, Any]]]] = []
     for session, frame in labels.groupby("session", sort=False):
         groups.append((raw_dir / str(session), list(frame.index), frame.to_dict("records")))
+    read, job = (session_chunks, _session_chunks_job) if compressed else (session_windows, _session_job)
     if jobs <= 1:
         for folder, index, rows in groups:
-            yield from zip(index, session_windows(folder, rows, params), strict=True)
+            yield from zip(index, read(folder, rows, params), strict=True)
         return
     with ProcessPoolExecutor(max_workers=jobs) as pool:
-        pending: deque[tuple[list[Any], Future[list[np.ndarray]]]] = deque()
+        pending: deque[tuple[list[Any], Future[list[Any]]]] = deque()
         todo = iter(groups)
         limit = jobs * (1 + ahead)
 
@@ -206,7 +225,7 @@ def iter_windows(labels: pd.DataFrame, raw_dir: str | Path, params: WindowParams
                 if item is None:
                     return
                 folder, index, rows = item
-                pending.append((index, pool.submit(_session_job, (folder, rows, params))))
+                pending.append((index, pool.submit(job, (folder, rows, params))))
 
         fill()
         while pending:

@@ -9,7 +9,7 @@ import io
 import json
 import shutil
 import sys
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -21,6 +21,7 @@ import pyarrow.parquet as pq
 
 from ofbe_data import __version__
 from ofbe_data.core.atomic import write_bytes_atomic
+from ofbe_data.dataset.chunks import Chunk, ChunkSink, x_dataset
 from ofbe_data.dataset.package import write_package_files
 from ofbe_data.dataset.signals import write_signal_files
 from ofbe_data.dataset.store import (
@@ -259,6 +260,8 @@ class WindowWriter:
         self._shard = 0  # index of the open file
         self._shard_n = 0  # windows in the open file
         self._entered = False
+        self._mode: str | None = None  # "samples" (append) or "chunks" (append_chunks)
+        self._sink: ChunkSink | None = None  # the open file's, with append_chunks
 
     @property
     def n_windows(self) -> int:
@@ -288,9 +291,7 @@ class WindowWriter:
         self._file = h5py.File(self._mem_name, "w", libver=H5_LIBVER, driver="core", backing_store=False)
         try:
             _set_attrs(self._file, _root_attrs(self.info))
-            self._x = self._file.create_dataset(
-                "X", shape=(0, t, 3), maxshape=(None, t, 3), dtype=np.float32, chunks=(1, t, 3),
-                compression="gzip", compression_opts=4, shuffle=True, fletcher32=True, track_times=False)
+            self._x = x_dataset(self._file, t)
             _set_attrs(self._x, {"units": UNITS, "frame": FRAME, "description":
                                  "specific force measured by the accelerometer, sensor frame; axes are "
                                  "(window, sample, x/y/z)"})
@@ -346,9 +347,56 @@ class WindowWriter:
             raise DatasetError(self._h5_path, "finite samples (after conversion to float32)",
                                f"{int((~finite).sum())} non-finite", "X")
         cols = _normalise_meta(meta, self.info.protocols, self._parquet_path)
-        n = arr.shape[0]
-        if n == 0:
-            return
+        if self._mode == "chunks":
+            raise DatasetError(self._h5_path, "windows appended one way (append or append_chunks)", "both",
+                               "X")
+        self._mode = "samples"
+        self._place(arr.shape[0], cols, lambda a, b: self._write_x(x32[a:b]))
+
+    def append_chunks(self, chunks: Sequence[Chunk], cols: Mapping[str, np.ndarray]) -> None:
+        """Append n windows already compressed (:func:`ofbe_data.dataset.chunks.compress_windows`,
+        in a worker) with their metadata already checked (:meth:`normalise_meta`).
+
+        Parameters
+        ----------
+        chunks
+            n stored chunks of ``X``, in window order.
+        cols
+            The n windows' rows of :meth:`normalise_meta`'s columns.
+
+        Raises
+        ------
+        DatasetError
+            Not as many metadata rows as chunks.
+        """
+        if self._x is None:
+            raise DatasetError(self._h5_path, "append_chunks() inside `with WindowWriter(...)`",
+                               "a closed writer")
+        n = len(chunks)
+        rows = {len(v) for v in cols.values()}
+        if rows != {n}:
+            raise DatasetError(self._parquet_path, f"{n} metadata rows (one per chunk)", f"{sorted(rows)}",
+                               "meta")
+        if self._mode == "samples":
+            raise DatasetError(self._h5_path, "windows appended one way (append or append_chunks)", "both",
+                               "X")
+        self._mode = "chunks"
+        self._place(n, cols, lambda a, b: self._chunk_sink().write(self._shard_n, chunks[a:b]))
+
+    def _chunk_sink(self) -> ChunkSink:
+        assert self._x is not None
+        if self._sink is None:
+            self._sink = ChunkSink(self._x)
+        return self._sink
+
+    def normalise_meta(self, meta: pd.DataFrame) -> dict[str, np.ndarray]:
+        """Check window metadata (the columns :meth:`append` takes) once for many blocks: column
+        name → numpy array, to be sliced for :meth:`append_chunks`."""
+        return _normalise_meta(meta, self.info.protocols, self._parquet_path)
+
+    def _place(self, n: int, cols: Mapping[str, np.ndarray], write: Callable[[int, int], None]) -> None:
+        """Put n windows into the open file(s): ``write(a, b)`` stores windows a..b of the block
+        at the open file's next row; a block that straddles a shard boundary is split."""
         done = 0
         while done < n:
             if self.shard_windows is not None and self._shard_n == self.shard_windows:
@@ -356,8 +404,9 @@ class WindowWriter:
             room = n - done
             if self.shard_windows is not None:
                 room = min(room, self.shard_windows - self._shard_n)
-            self._write_x(x32[done:done + room])
-            self._pending.append(cols if room == n else {k: v[done:done + room] for k, v in cols.items()})
+            write(done, done + room)
+            part = dict(cols) if room == n else {k: v[done:done + room] for k, v in cols.items()}
+            self._pending.append(part)
             if len(self._pending) >= _MERGE_BLOCKS:
                 self._blocks.append(_merge(self._pending))
                 self._pending = []
@@ -420,6 +469,9 @@ class WindowWriter:
         if sharded:
             _set_attrs(f, {"shard": np.int64(self._shard), "shard_windows": np.int64(self.shard_windows),
                            "first_window_id": np.int64(cols["window_id"][0])})
+        if self._sink is not None:
+            self._sink.finish()  # after y and meta/, as HDF5's cache would flush the last windows
+            self._sink = None
         f.flush()
         image = f.id.get_file_image()
         f.close()
@@ -446,6 +498,7 @@ class WindowWriter:
                 self._file.close()
             except Exception:  # noqa: BLE001 - the file is discarded; the original error is re-raised
                 pass
+        self._sink = None
         self._file = None
         self._x = None
 

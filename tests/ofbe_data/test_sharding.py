@@ -437,3 +437,59 @@ def test_the_sharded_export_loads_in_hugging_face_croissant_and_frictionless(sha
     assert_croissant_matches(dest)
     report = frictionless_report(dest)
     assert report.valid, report.flatten(["resourcePath", "type", "note"])
+
+
+def _write_chunks(dest: Path, blocks: list[tuple[np.ndarray, pd.DataFrame]], shard_windows: int | None,
+                  t: int) -> Path:
+    """What ``ofbe-dataset build`` does: the workers compress each block's windows, the writer
+    stores the chunks with the metadata checked once for every block."""
+    from ofbe_data.dataset.chunks import compress_windows
+
+    with atomic_directory(dest) as tmp, WindowWriter(tmp, dataclasses.replace(_info(), window_length=t,
+                                                                               stride=t), shard_windows) as w:
+        cols = w.normalise_meta(pd.concat([m for _, m in blocks], ignore_index=True))
+        at = 0
+        for X, meta in blocks:
+            n = len(meta)
+            w.append_chunks(compress_windows(X, "test"), {k: v[at:at + n] for k, v in cols.items()})
+            at += n
+    return dest
+
+
+@pytest.mark.parametrize(("t", "sizes", "shard"), [
+    (20, [3, 1, 4, 1, 5, 9, 2, 6], None),        # all in HDF5's chunk cache until the file is written
+    (20, [3, 1, 4, 1, 5, 9, 2, 6], 7),           # sharded, blocks straddling the boundaries
+    (3000, [1] * 40, None),                      # more windows than the cache holds (29 of 3000 samples)
+    (3000, [2, 1, 3] * 15, 32),
+    (1000, [5] * 30, None),
+    (90000, [1, 2], None),                        # a window larger than the cache: written at once
+])
+def test_chunks_compressed_in_the_workers_give_the_bytes_of_the_samples(tmp_path: Path, t, sizes,
+                                                                        shard) -> None:
+    rng = np.random.default_rng(7)
+    blocks = []
+    for i, k in enumerate(sizes):
+        meta = _blocks(1, k, t)[0][1].assign(session=f"s{i}", power_cycle=i, fold_grouped=i % 5)
+        blocks.append((rng.normal(0.0, 0.05, (k, t, 3)) + [0.0, 0.0, 9.8], meta))
+    samples = tmp_path / "samples"
+    with atomic_directory(samples) as tmp, WindowWriter(tmp, dataclasses.replace(_info(), window_length=t,
+                                                                                  stride=t), shard) as w:
+        for X, meta in blocks:
+            w.append(X, meta)
+    chunks = _write_chunks(tmp_path / "chunks", blocks, shard, t)
+    files = sorted(p.name for p in samples.iterdir())
+    assert files == sorted(p.name for p in chunks.iterdir())
+    for name in files:
+        assert (samples / name).read_bytes() == (chunks / name).read_bytes(), name
+
+
+def test_one_writer_takes_samples_or_chunks_not_both(tmp_path: Path) -> None:
+    from ofbe_data.dataset.chunks import compress_windows
+
+    (X, meta), = _blocks(1, 2)
+    with pytest.raises(DatasetError, match=r"expected windows appended one way \(append or append_chunks\), "
+                                           r"found both"):
+        with atomic_directory(tmp_path / "d") as tmp, WindowWriter(tmp, _info()) as w:
+            w.append(X, meta)
+            w.append_chunks(compress_windows(X, "x"), w.normalise_meta(meta))
+    assert not (tmp_path / "d").exists()
