@@ -13,7 +13,6 @@ process compressed what.
 from __future__ import annotations
 
 import itertools
-from collections import deque
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -89,25 +88,27 @@ class ChunkSink:
     from the samples.
 
     Written from samples, a chunk goes into HDF5's chunk cache (``rdcc_nbytes``, 1 MiB by
-    default: C = 1 MiB // (T·12 bytes) windows) and gets its place in the file when the cache
-    evicts it, oldest first, or at the file's flush; the chunk index (a B-tree) is made at the
-    first write. ``write_direct_chunk`` places a chunk at once. So the sink writes the first
-    window from its samples (making the index and holding the window in the cache, as HDF5
-    would), flushes the dataset when the C-th window comes (HDF5 evicts the first then), and
-    keeps the others in a queue of C, placing the oldest when a newer one comes; :meth:`finish`
-    places what the cache would still hold, after the file's other objects, just before the
-    flush. Every allocation then happens in HDF5's own order: the bytes are those of the sample
-    path (``tests/ofbe_data/test_sharding.py`` compares them for several window lengths and
-    counts).
+    default: C = 1 MiB // (T·12 bytes) windows, in ``rdcc_nslots`` hash slots, 521 by default,
+    window i in slot i mod 521) and gets its place in the file when the cache evicts it: when
+    a newer window needs its slot, or the oldest when the cache is full, or at the file's
+    flush; the chunk index (a B-tree) is made at the first write. ``write_direct_chunk``
+    places a chunk at once. So the sink keeps the cache's book: it writes the first window
+    from its samples (making the index and holding the window in HDF5's cache, as HDF5
+    would), keeps the other windows' chunks in the same order and slots, and places each
+    one when HDF5 would evict it (the first by flushing the dataset); :meth:`finish` places
+    what the cache would still hold, after the file's other objects, just before the flush.
+    Every allocation then happens in HDF5's own order: the bytes are those of the sample path
+    (``tests/ofbe_data/test_sharding.py`` compares them for many window lengths and counts).
     """
 
     def __init__(self, ds: h5py.Dataset) -> None:
         self.ds = ds
         self.window_length = int(ds.shape[1])
-        nbytes = int(ds.id.get_access_plist().get_chunk_cache()[1])
-        self.capacity = nbytes // (self.window_length * 3 * 4)
-        self._queue: deque[tuple[int, Chunk]] = deque()
-        self._first_cached = False
+        nslots, nbytes, _ = ds.id.get_access_plist().get_chunk_cache()
+        self.nslots = max(int(nslots), 1)
+        self.capacity = int(nbytes) // (self.window_length * 3 * 4)
+        self._cache: dict[int, Chunk | None] = {}  # window → chunk, oldest first (None: in HDF5's)
+        self._slots: dict[int, int] = {}  # hash slot → window
 
     def write(self, start: int, chunks: Sequence[Chunk]) -> None:
         """Grow ``X`` to ``start + len(chunks)`` windows and store the chunks at ``start``, …"""
@@ -117,25 +118,28 @@ class ChunkSink:
             if self.capacity == 0:  # a chunk larger than the cache: HDF5 writes it at once
                 self.ds.id.write_direct_chunk((index, 0, 0), chunk[1], chunk[0])
                 continue
+            slot = index % self.nslots
+            if slot in self._slots:  # a newer window takes the slot: the older one is evicted
+                self._evict(self._slots[slot])
+            while len(self._cache) >= self.capacity:
+                self._evict(next(iter(self._cache)))
             if index == 0:
                 self.ds[0:1] = decompress_chunk(chunk, self.window_length)
-                self._first_cached = True
-                continue
-            if self._first_cached and index == self.capacity:
-                self.ds.id.flush()  # HDF5 evicts the first window now
-                self._first_cached = False
-            elif len(self._queue) == self.capacity:
-                self._place(*self._queue.popleft())
-            self._queue.append((index, chunk))
+                self._cache[0] = None
+            else:
+                self._cache[index] = chunk
+            self._slots[slot] = index
 
     def finish(self) -> None:
         """Place what the cache would still hold (call after the file's other objects, before
         its flush)."""
-        if self._first_cached:
-            self.ds.id.flush()
-            self._first_cached = False
-        while self._queue:
-            self._place(*self._queue.popleft())
+        while self._cache:
+            self._evict(next(iter(self._cache)))
 
-    def _place(self, index: int, chunk: Chunk) -> None:
-        self.ds.id.write_direct_chunk((index, 0, 0), chunk[1], chunk[0])
+    def _evict(self, index: int) -> None:
+        chunk = self._cache.pop(index)
+        del self._slots[index % self.nslots]
+        if chunk is None:
+            self.ds.id.flush()  # the first window, held in HDF5's own cache
+        else:
+            self.ds.id.write_direct_chunk((index, 0, 0), chunk[1], chunk[0])
