@@ -345,7 +345,8 @@ def dask_client(scheduler: str, jobs: int, worker_env: Mapping[str, str] | None 
                               "distributed.worker.daemon": False}
     if scheduler == DASK:
         config["distributed.comm.timeouts.connect"] = _LOCAL_CONNECT_TIMEOUT
-        config["distributed.worker.preload"] = ["ofbe_data.core.worker_signals"]
+        preload = [str(m) for m in dask.config.get("distributed.worker.preload", None) or []]
+        config["distributed.worker.preload"] = [*preload, "ofbe_data.core.worker_signals"]  # the user's kept
     level = logging.WARNING if verbose else logging.CRITICAL
     with dask.config.set(config), _quiet(verbose) as deaths, contextlib.ExitStack() as stack:
         if scheduler == DASK:
