@@ -13,6 +13,8 @@ process compressed what.
 from __future__ import annotations
 
 import itertools
+import os
+import threading
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -67,11 +69,40 @@ def compress_windows(x: np.ndarray, source: str | Path) -> list[Chunk]:
                            f"{int((~finite).sum())} non-finite", "X")
     if x32.shape[0] == 0:
         return []
-    name = f"ofbe-chunks-{next(_SCRATCH)}.h5"  # in memory only: never created on disk
-    with h5py.File(name, "w", libver=H5_LIBVER, driver="core", backing_store=False) as f:
-        ds = x_dataset(f, x32.shape[1], x32.shape[0])
-        ds[...] = x32
-        return [ds.id.read_direct_chunk((i, 0, 0)) for i in range(x32.shape[0])]
+    ds = _scratch(x32.shape[1])
+    ds.resize(x32.shape[0], axis=0)
+    ds[...] = x32
+    return [ds.id.read_direct_chunk((i, 0, 0)) for i in range(x32.shape[0])]
+
+
+_LOCAL = threading.local()
+_SCRATCH_BYTES = 64 * 2**20
+"""A thread's scratch file is made anew once its image passes this size (HDF5 reuses the space
+of overwritten chunks, so it stays near one block's compressed size)."""
+
+
+def _forget_scratch() -> None:
+    """In a forked child: start with scratch files of its own."""
+    _LOCAL.__dict__.pop("datasets", None)
+
+
+os.register_at_fork(after_in_child=_forget_scratch)
+
+
+def _scratch(window_length: int) -> h5py.Dataset:
+    """This thread's scratch ``X`` for windows of ``window_length`` samples: an HDF5 file in
+    memory (never on disk), kept between calls (making one costs about as much as compressing
+    a window of 3000 samples)."""
+    ds = getattr(_LOCAL, "datasets", {}).get(window_length)
+    if ds is not None and ds.file.id.get_filesize() <= _SCRATCH_BYTES:
+        return ds
+    if ds is not None:
+        ds.file.close()
+    name = f"ofbe-chunks-{os.getpid()}-{next(_SCRATCH)}.h5"  # in memory only: never created on disk
+    f = h5py.File(name, "w", libver=H5_LIBVER, driver="core", backing_store=False)
+    ds = x_dataset(f, window_length, 1)
+    _LOCAL.datasets = {**getattr(_LOCAL, "datasets", {}), window_length: ds}
+    return ds
 
 
 def decompress_chunk(chunk: Chunk, window_length: int) -> np.ndarray:
