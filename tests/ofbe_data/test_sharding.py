@@ -463,8 +463,8 @@ def _write_chunks(dest: Path, blocks: list[tuple[np.ndarray, pd.DataFrame]], sha
     (3000, [2, 1, 3] * 15, 32),
     (1000, [5] * 30, None),
     (90000, [1, 2], None),                        # a window larger than the cache: written at once
-    (20, [1] * 1500, None),                       # windows 521 apart share a hash slot of the cache
-    (100, [3, 5, 2] * 100, 700),
+    (20, [1] * 600, None),                        # windows 521 apart share a hash slot of the cache
+    (100, [3, 5, 2] * 60, 560),
 ])
 def test_chunks_compressed_in_the_workers_give_the_bytes_of_the_samples(tmp_path: Path, t, sizes,
                                                                         shard) -> None:
