@@ -14,6 +14,7 @@ from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
 
+from ofbe_data.core.atomic import folders_under, remove_new_empty_folders
 from ofbe_data.core.cli import add_jobs, add_params, add_scheduler, command, fail, io_failure
 from ofbe_data.core.errors import OfbeError
 from ofbe_data.labelling.batch import (
@@ -55,6 +56,7 @@ def _parser() -> argparse.ArgumentParser:
 @command(PROG)
 def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
+    before = folders_under(args.out)  # what a failed run may not remove
     try:
         data = read_label_section(args.params) if args.params else {}
         if args.min_samples_from and args.min_samples is None and "min_samples" not in data:
@@ -75,6 +77,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except OfbeError as exc:  # the Dask scheduler cannot be reached
         return fail(PROG, str(exc), 1)
     except OSError as exc:
+        remove_new_empty_folders(args.out, before)  # the campaign folders this run made, left empty
         return io_failure(PROG, exc, args.out, "the labels could not be written")
     failed = [o for o in outcomes if o.error]
     for o in failed:

@@ -108,3 +108,21 @@ def file_kind(path: str | Path) -> str | None:
     if stat.S_ISSOCK(mode):
         return "a socket"
     return "a device or other special file"
+
+
+def folders_under(root: str | Path) -> set[Path]:
+    """``root`` and every folder under it that exists now (empty when ``root`` does not)."""
+    root = Path(root)
+    if not root.is_dir():
+        return set()
+    return {root, *(p for p in root.rglob("*") if p.is_dir())}
+
+
+def remove_new_empty_folders(root: str | Path, before: set[Path]) -> None:
+    """Remove the folders under ``root`` (and ``root``) that were not in ``before`` and are
+    empty, deepest first: what a failed run made and left with nothing in it."""
+    for folder in sorted(folders_under(root) - before, key=lambda p: len(p.parts), reverse=True):
+        try:
+            folder.rmdir()
+        except OSError:  # not empty (or gone): kept
+            pass

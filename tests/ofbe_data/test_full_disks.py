@@ -115,7 +115,16 @@ def test_labelling_onto_a_full_disk(small_disk, capsys) -> None:
     assert code == EXIT_IO
     _assert_one_line(capsys.readouterr().err, "ofbe-label", re.escape(str(disk)) + r"/labels\S*", _NO_SPACE,
                      "the labels could not be written")
-    assert not [p for p in _left(disk) if Path(p).suffix in (".parquet", ".json", ".tmp")], _left(disk)
+    assert _left(disk) == []  # not even the empty folders the run made
+
+
+def test_a_failed_labelling_run_keeps_the_folders_that_were_there(small_disk, capsys) -> None:
+    disk = small_disk(256)
+    (disk / "labels" / "mine").mkdir(parents=True)
+    _fill(disk, 8)
+    assert label_cli.main([str(GA / "ga-pc001"), "--out", str(disk / "labels"), "--quiet"]) == EXIT_IO
+    capsys.readouterr()
+    assert _left(disk) == ["labels", "labels/mine"]
 
 
 def test_simulating_onto_a_full_disk(small_disk, capsys) -> None:
