@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import errno
 import os
 import shutil
 import stat
@@ -21,6 +22,31 @@ def _default_mode(path: Path, directory: bool) -> None:
     """Give a temporary file or folder the permissions a plain create would (mkstemp and
     mkdtemp make them private to the owner)."""
     os.chmod(path, (0o777 if directory else 0o666) & ~_umask())
+
+
+WRITE_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.EFBIG})
+"""The ``errno`` values of a failed write (a full disk, a quota, an I/O error)."""
+
+
+def is_write_failure(exc: BaseException) -> bool:
+    """Whether ``exc`` is a failed write: an ``OSError`` whose errno is in :data:`WRITE_ERRNOS`."""
+    return isinstance(exc, OSError) and exc.errno in WRITE_ERRNOS
+
+
+def _against(exc: OSError, path: Path) -> OSError:
+    """``exc`` naming ``path``: a write on a descriptor names no file, and the kernel's copy
+    names its source; a user wants the file that could not be written."""
+    return OSError(exc.errno, exc.strerror, str(path))
+
+
+def copy_file(src: str | Path, dst: str | Path) -> None:
+    """``shutil.copyfile``, with a failed write (:func:`is_write_failure`) naming ``dst``."""
+    try:
+        shutil.copyfile(src, dst)
+    except OSError as exc:
+        if is_write_failure(exc):
+            raise _against(exc, Path(dst)) from exc
+        raise
 
 
 def write_bytes_atomic(path: str | Path, data: bytes) -> None:
@@ -43,7 +69,7 @@ def write_bytes_atomic(path: str | Path, data: bytes) -> None:
     except OSError as exc:
         Path(tmp).unlink(missing_ok=True)
         if exc.filename is None:  # a write on the descriptor names no file: name the target
-            raise OSError(exc.errno, exc.strerror, str(path)) from exc
+            raise _against(exc, path) from exc
         raise
     except BaseException:
         Path(tmp).unlink(missing_ok=True)

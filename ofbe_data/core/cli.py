@@ -12,7 +12,6 @@ I/O error) or :data:`EXIT_INTERRUPTED` (Ctrl-C).
 from __future__ import annotations
 
 import argparse
-import errno
 import functools
 import os
 import re
@@ -22,6 +21,8 @@ from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
 from typing import Any
+
+from ofbe_data.core.atomic import is_write_failure
 
 EXIT_OK = 0
 """Success (or, for ``ofbe-label``, every session labelled or cleanly rejected)."""
@@ -38,14 +39,6 @@ EXIT_INTERRUPTED = 130
 """Stopped by Ctrl-C (128 + SIGINT, as shells report it)."""
 EXIT_IO = 74
 """An output could not be written (a full disk, a quota, an I/O error): sysexits' ``EX_IOERR``."""
-WRITE_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.EFBIG})
-"""The ``errno`` values of a failed write that the commands report as :data:`EXIT_IO`."""
-
-
-def is_write_failure(exc: BaseException) -> bool:
-    """Whether ``exc`` is a failed write: an ``OSError`` whose errno is in :data:`WRITE_ERRNOS`."""
-    return isinstance(exc, OSError) and exc.errno in WRITE_ERRNOS
-
 
 def io_failure(prog: str, exc: OSError, out: str | Path | None, what: str) -> int:
     """Report a file-system error in one line and return the exit status.

@@ -7,12 +7,10 @@ before they existed.
 from __future__ import annotations
 
 import dataclasses
-import errno
-import shutil
 from collections.abc import Sequence
 from pathlib import Path
 
-from ofbe_data.core.atomic import atomic_directory
+from ofbe_data.core.atomic import atomic_directory, copy_file
 from ofbe_data.core.errors import ConfigError, OutputExistsError
 from ofbe_data.dataset.package import write_package_files
 from ofbe_data.dataset.reader import read_dataset_info, verify_dataset
@@ -77,20 +75,10 @@ def export_dataset(src: str | Path, dest: str | Path, *, title: str | None = Non
         signals = signal_names(shards)
         has_signals = all(name in listed for name in signals)  # checked against SHA256SUMS
         for name in (*data_files, PARQUET_NAME, *(signals if has_signals else ())):
-            _copy(src / name, tmp / name)
+            copy_file(src / name, tmp / name)
         if not has_signals:
             write_signal_files(tmp)
         write_package_files(tmp, info)
         verify_dataset(tmp)
     return dest
 
-
-def _copy(src: Path, dst: Path) -> None:
-    """Copy a file; a full destination disk is reported against the destination (the kernel's
-    copy names the source)."""
-    try:
-        shutil.copyfile(src, dst)
-    except OSError as exc:
-        if exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG):
-            raise OSError(exc.errno, exc.strerror, str(dst)) from exc
-        raise

@@ -27,6 +27,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from ofbe_data.core.atomic import is_write_failure
 from ofbe_data.dataset.store import (
     DATASET_FORMAT,
     FRAME,
@@ -111,7 +112,7 @@ def _write_one(h5_path: Path, out: Path, rows: pa.Table, schema: pa.Schema, wind
         os.replace(tmp, out)
     except OSError as exc:
         tmp.unlink(missing_ok=True)
-        if exc.errno is not None:  # a failed write (a full disk): the commands report it as such
+        if is_write_failure(exc):  # a full disk: the commands report it as such
             raise
         raise DatasetError(out, f"{out.name} written from the X of {h5_path}",
                            f"an unreadable file ({exc})") from exc

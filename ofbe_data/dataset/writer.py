@@ -347,10 +347,7 @@ class WindowWriter:
             raise DatasetError(self._h5_path, "finite samples (after conversion to float32)",
                                f"{int((~finite).sum())} non-finite", "X")
         cols = _normalise_meta(meta, self.info.protocols, self._parquet_path)
-        if self._mode == "chunks":
-            raise DatasetError(self._h5_path, "windows appended one way (append or append_chunks)", "both",
-                               "X")
-        self._mode = "samples"
+        self._use("samples")
         self._place(arr.shape[0], cols, lambda a, b: self._write_x(x32[a:b]))
 
     def append_chunks(self, chunks: Sequence[Chunk], cols: Mapping[str, np.ndarray]) -> None:
@@ -377,11 +374,15 @@ class WindowWriter:
         if rows != {n}:
             raise DatasetError(self._parquet_path, f"{n} metadata rows (one per chunk)", f"{sorted(rows)}",
                                "meta")
-        if self._mode == "samples":
+        self._use("chunks")
+        self._place(n, cols, lambda a, b: self._chunk_sink().write(self._shard_n, chunks[a:b]))
+
+    def _use(self, mode: str) -> None:
+        """Take windows one way for the writer's life: ``samples`` (append) or ``chunks``."""
+        if self._mode not in (None, mode):
             raise DatasetError(self._h5_path, "windows appended one way (append or append_chunks)", "both",
                                "X")
-        self._mode = "chunks"
-        self._place(n, cols, lambda a, b: self._chunk_sink().write(self._shard_n, chunks[a:b]))
+        self._mode = mode
 
     def _chunk_sink(self) -> ChunkSink:
         assert self._x is not None

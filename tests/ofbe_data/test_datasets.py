@@ -284,9 +284,10 @@ def test_a_full_disk_is_refused_before_the_file_is_written(campaigns, tmp_path, 
                              "--stride", str(T), "--quiet"])
     err = capsys.readouterr().err
     assert code == 74 and err.count("\n") == 1  # EX_IOERR
-    assert re.fullmatch(re.escape(f"ofbe-dataset: error: {out}/windows.h5: expected ") + r"\d\.\d MB free for "
-                        r"windows\.h5 \(120 windows\), found 1\.0 MB free on its disk: the dataset could not be "
-                        r"written; nothing partial is kept, free space and rerun\n", err), err
+    line = (re.escape(f"ofbe-dataset: error: {out}/windows.h5: expected ") + r"\d\.\d MB free for "
+            r"windows\.h5 \(120 windows\), found 1\.0 MB free on its disk: the dataset could not be "
+            r"written; nothing partial is kept, free space and rerun\n")
+    assert re.fullmatch(line, err), err
     assert not out.exists() and not any(tmp_path.glob(".out*"))
 
 

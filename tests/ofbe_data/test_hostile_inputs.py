@@ -283,7 +283,7 @@ def test_a_full_disk_during_export_is_one_line_and_leaves_nothing(tmp_path: Path
     import errno
 
     from ofbe_data.cli.dataset import main as dataset_main
-    from ofbe_data.dataset import export as export_module
+    from ofbe_data.core import atomic as atomic_module
 
     built = _built_dataset(tmp_path)
     calls = []
@@ -294,7 +294,7 @@ def test_a_full_disk_during_export_is_one_line_and_leaves_nothing(tmp_path: Path
             raise OSError(errno.ENOSPC, "No space left on device", str(dst))
         return shutil.copyfile(src, dst)
 
-    monkeypatch.setattr(export_module.shutil, "copyfile", full)
+    monkeypatch.setattr(atomic_module.shutil, "copyfile", full)
     out = tmp_path / "exported"
     assert dataset_main(["export", str(built), "--out", str(out)]) == 74  # EX_IOERR
     line = _one_line(capsys.readouterr().err)
