@@ -293,6 +293,31 @@ def feature_length(window_length: int, pool_size: int) -> int:
     return n
 
 
+def body_layers(params: OFBENetParams, draw: bool = True) -> list[keras.layers.Layer]:
+    """The network between the input scaling and the scaled head (:data:`HEAD_LAYER`), in order.
+
+    Parameters
+    ----------
+    params
+        Architecture choices (``pool_size``, ``dense_units``, ``dense_activation``, ``dropout``).
+    draw
+        True: Keras' default initialisers and an unseeded dropout, which draw from the global
+        random state (set by :func:`keras.utils.set_random_seed`). False: zero weights and a
+        dropout seeded 0, nothing drawn: for layers whose variables are assigned afterwards.
+    """
+    init = {} if draw else {"kernel_initializer": "zeros"}
+    layers: list[keras.layers.Layer] = []
+    for i, filters in enumerate(FILTERS, start=1):
+        layers += [keras.layers.Conv1D(filters, KERNEL_SIZE, name=f"conv{i}", **init),
+                   keras.layers.BatchNormalization(name=f"bn{i}"),
+                   keras.layers.LeakyReLU(negative_slope=LEAKY_SLOPE, name=f"leaky_relu{i}"),
+                   keras.layers.AveragePooling1D(pool_size=params.pool_size, name=f"pool{i}")]
+    return [*layers, keras.layers.GlobalAveragePooling1D(name="global_pool"),
+            keras.layers.Dense(params.dense_units, activation=params.dense_activation, name="dense", **init),
+            keras.layers.Dropout(params.dropout, name="dropout", seed=None if draw else 0),
+            keras.layers.Dense(3, name=HEAD_LAYER, **init)]
+
+
 def build_ofbenet(window_length: int, params: OFBENetParams, x_mean: Sequence[float],
                   x_std: Sequence[float], y_mean: Sequence[float], y_std: Sequence[float]) -> keras.Model:
     """The OFBENet Keras model, uncompiled, with both scalings inside, of built-in Keras layers only.
@@ -334,14 +359,7 @@ def build_ofbenet(window_length: int, params: OFBENetParams, x_mean: Sequence[fl
     x = inputs
     for layer in input_scaling_layers(x_mean, x_std):
         x = layer(x)
-    for i, filters in enumerate(FILTERS, start=1):
-        x = keras.layers.Conv1D(filters, KERNEL_SIZE, name=f"conv{i}")(x)
-        x = keras.layers.BatchNormalization(name=f"bn{i}")(x)
-        x = keras.layers.LeakyReLU(negative_slope=LEAKY_SLOPE, name=f"leaky_relu{i}")(x)
-        x = keras.layers.AveragePooling1D(pool_size=params.pool_size, name=f"pool{i}")(x)
-    x = keras.layers.GlobalAveragePooling1D(name="global_pool")(x)
-    x = keras.layers.Dense(params.dense_units, activation=params.dense_activation, name="dense")(x)
-    x = keras.layers.Dropout(params.dropout, name="dropout")(x)
-    z = keras.layers.Dense(3, name=HEAD_LAYER)(x)
-    outputs = target_scaling_layer(y_mean, y_std)(z)
+    for layer in body_layers(params):
+        x = layer(x)
+    outputs = target_scaling_layer(y_mean, y_std)(x)
     return keras.Model(inputs, outputs, name="ofbenet")

@@ -52,7 +52,8 @@ from ofbe_data.core.cli import import_tensorflow
 from ofbe_data.core.errors import ConfigError
 from ofbe_model.estimators.base import Estimator, EstimatorError, check_inputs, register
 from ofbe_model.estimators.domain import TrainingDomain, domain_of
-from ofbe_model.ofbenet.layers import HEAD_LAYER, LEGACY_OBJECTS, build_ofbenet, upgrade_legacy
+from ofbe_model.ofbenet.layers import LEGACY_OBJECTS, build_ofbenet, upgrade_legacy
+from ofbe_model.ofbenet.trainer import copy_state, prescale, trainer_for
 from ofbe_model.ofbenet.params import (
     _KERAS_FILES,
     _PARAM_NAMES,
@@ -313,9 +314,7 @@ class OFBENet(Estimator):
                                  "found none")
         x_mean, x_std, y_mean, y_std = scaling_constants(x_tr, y_tr, params)
         model = build_ofbenet(int(x.shape[1]), params, x_mean, x_std, y_mean, y_std)
-        trainer = keras.Model(model.inputs, model.get_layer(HEAD_LAYER).output, name="ofbenet_train")
-        trainer.compile(optimizer=keras.optimizers.Adam(learning_rate=params.learning_rate), loss="mse",
-                        jit_compile=params.jit_compile)
+        trainer = trainer_for(model, params, int(x_tr.shape[0]), int(val.sum()))  # compiled once per process
 
         def target(v: np.ndarray) -> np.ndarray:
             return ((v - y_mean) / y_std).astype(np.float32)
@@ -331,10 +330,11 @@ class OFBENet(Estimator):
         if on_epoch is not None:
             callbacks.append(keras.callbacks.LambdaCallback(
                 on_epoch_end=lambda epoch, logs: on_epoch(epoch + 1, dict(logs or {}))))
-        validation = (x[val], target(y[val])) if val.any() else None
-        hist = trainer.fit(x_tr, target(y_tr), batch_size=params.batch_size, epochs=params.max_epochs,
-                           validation_data=validation, validation_batch_size=EVAL_BATCH, shuffle=True,
-                           callbacks=callbacks, verbose=verbose)
+        validation = (prescale(model, x[val]), target(y[val])) if val.any() else None
+        hist = trainer.fit(prescale(model, x_tr), target(y_tr), batch_size=params.batch_size,
+                           epochs=params.max_epochs, validation_data=validation,
+                           validation_batch_size=EVAL_BATCH, shuffle=True, callbacks=callbacks, verbose=verbose)
+        copy_state(trainer, model)
         history = _plain_history(hist.history)
         losses = np.asarray(history.get(monitor, []), dtype=np.float64)
         if losses.size == 0 or not np.isfinite(losses).all():

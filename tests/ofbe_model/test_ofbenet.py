@@ -33,6 +33,7 @@ from ofbe_model.ofbenet.layers import (
     target_scaling_layer,
 )
 from ofbe_model.ofbenet.network import OFBENet, group_validation_split
+from ofbe_model.ofbenet import trainer
 from ofbe_model.ofbenet.params import FILTERS, SIDECAR_NAME, OFBENetParams
 from ofbe_model.ofbenet.training import dataset_dirname, read_params, read_seed_count
 from tests.ofbe_model.plain_keras import plain_keras_predict
@@ -166,6 +167,40 @@ def test_two_fits_are_identical() -> None:
     wa, wb = a.model_.get_weights(), b.model_.get_weights()
     assert len(wa) == len(wb) and all(np.array_equal(p, q) for p, q in zip(wa, wb, strict=True))
     assert a.history_ == b.history_
+
+
+def test_a_reused_trainer_trains_what_a_fresh_one_does() -> None:
+    # the fits of one process share a compiled trainer (ofbe_model.ofbenet.trainer); whatever came
+    # before, with other seeds and other sizes (32 training windows: whole batches of 8, a graph
+    # with a fixed batch size; 20: a partial one, an open batch size), a fit gives the weights and
+    # history of one with a trainer built for it alone
+    data = [synthetic(40, seed=5), synthetic(26, seed=6)]
+    plan = [(1, 1), (0, 0), (1, 0), (0, 1), (0, 0)]  # (data, seed)
+
+    def fit(d: int, s: int) -> OFBENet:
+        return OFBENet(max_epochs=2, seed=s).fit(*data[d])
+
+    trainer.clear()
+    reused = [fit(d, s) for d, s in plan]
+    assert len(trainer._TRAINERS) == 2  # fixed and open batch sizes: TensorFlow optimises them differently
+    fresh = []
+    for d, s in plan:
+        trainer.clear()
+        fresh.append(fit(d, s))
+    for a, b in zip(reused, fresh, strict=True):
+        va, vb = [np.asarray(v) for v in a.model_.variables], [np.asarray(v) for v in b.model_.variables]
+        assert len(va) == len(vb) and all(np.array_equal(p, q) for p, q in zip(va, vb, strict=True))
+        assert a.history_ == b.history_
+
+
+def test_prescaling_is_the_models_own_input_scaling() -> None:
+    x, _, _ = synthetic(6, seed=8)
+    x[0, :3] = [[0.0, -0.0, 1e-30], [3e38, -3e38, 1.0], [np.nan, np.inf, -np.inf]]
+    model = build_ofbenet(T, OFBENetParams(), [0.1, -0.2, 9.7], [0.05, 0.03, 0.31], [0, 0, 0], [1, 1, 1])
+    inner = keras.Model(model.inputs, model.get_layer("input_scaling").output)
+    want = np.asarray(inner(x, training=False))
+    got = trainer.prescale(model, x)
+    assert got.dtype == np.float32 and np.array_equal(got.view(np.uint32), want.view(np.uint32))
 
 
 def test_xla_after_op_determinism_warns() -> None:
