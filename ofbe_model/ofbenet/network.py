@@ -53,7 +53,6 @@ from ofbe_data.core.errors import ConfigError
 from ofbe_model.estimators.base import Estimator, EstimatorError, check_inputs, register
 from ofbe_model.estimators.domain import TrainingDomain, domain_of
 from ofbe_model.ofbenet.layers import LEGACY_OBJECTS, build_ofbenet, upgrade_legacy
-from ofbe_model.ofbenet.trainer import copy_state, prescale, trainer_for
 from ofbe_model.ofbenet.params import (
     _KERAS_FILES,
     _PARAM_NAMES,
@@ -64,6 +63,7 @@ from ofbe_model.ofbenet.params import (
     SIDECAR_NAME,
     OFBENetParams,
 )
+from ofbe_model.ofbenet.trainer import copy_state, prescale, trainer_for
 
 tf = import_tensorflow()  # before keras: TensorFlow's start-up lines stay off the terminal
 import keras  # noqa: E402
@@ -331,9 +331,9 @@ class OFBENet(Estimator):
             callbacks.append(keras.callbacks.LambdaCallback(
                 on_epoch_end=lambda epoch, logs: on_epoch(epoch + 1, dict(logs or {}))))
         validation = (prescale(model, x[val]), target(y[val])) if val.any() else None
-        hist = trainer.fit(prescale(model, x_tr), target(y_tr), batch_size=params.batch_size,
-                           epochs=params.max_epochs, validation_data=validation,
-                           validation_batch_size=EVAL_BATCH, shuffle=True, callbacks=callbacks, verbose=verbose)
+        fit = {"batch_size": params.batch_size, "epochs": params.max_epochs, "verbose": verbose}
+        hist = trainer.fit(prescale(model, x_tr), target(y_tr), validation_data=validation,
+                           validation_batch_size=EVAL_BATCH, shuffle=True, callbacks=callbacks, **fit)
         copy_state(trainer, model)
         history = _plain_history(hist.history)
         losses = np.asarray(history.get(monitor, []), dtype=np.float64)

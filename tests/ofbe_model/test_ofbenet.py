@@ -25,6 +25,7 @@ from ofbe_data.dataset.store import DatasetInfo
 from ofbe_data.dataset.writer import WindowWriter
 from ofbe_model.cli.train import main
 from ofbe_model.estimators.base import EstimatorError, make_estimator
+from ofbe_model.ofbenet import trainer
 from ofbe_model.ofbenet.layers import (
     build_ofbenet,
     feature_length,
@@ -33,7 +34,6 @@ from ofbe_model.ofbenet.layers import (
     target_scaling_layer,
 )
 from ofbe_model.ofbenet.network import OFBENet, group_validation_split
-from ofbe_model.ofbenet import trainer
 from ofbe_model.ofbenet.params import FILTERS, SIDECAR_NAME, OFBENetParams
 from ofbe_model.ofbenet.training import dataset_dirname, read_params, read_seed_count
 from tests.ofbe_model.plain_keras import plain_keras_predict
