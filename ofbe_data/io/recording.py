@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections import Counter
 from dataclasses import dataclass, field
 from datetime import datetime
@@ -180,7 +181,7 @@ class Recording:
     def median_step_s(self) -> float:
         """Median step between consecutive time stamps, ``np.median(np.diff(t))``, s (NaN with
         fewer than two samples); computed once, for the checks and the tap high-pass alike."""
-        return float(np.median(np.diff(self.t))) if self.n >= 2 else float("nan")
+        return median(np.diff(self.t)) if self.n >= 2 else float("nan")
 
     @property
     def fs_hz(self) -> float:
@@ -189,3 +190,24 @@ class Recording:
             return float("nan")
         span = float(self.t[-1] - self.t[0])
         return (self.n - 1 + self.diagnostics.missing_samples) / span if span > 0 else float("nan")
+
+
+def median(x: np.ndarray) -> float:
+    """``float(np.median(x))`` with the same bits, for a 1-D float64 array, from one selection.
+
+    ``np.median`` partitions at the middle rank or ranks (and at the last, for NaN) and takes
+    ``np.mean`` of the middle element or elements. A partition at the upper middle rank n // 2
+    alone puts every smaller element before it, and the largest of those is the element of the
+    lower middle rank (n even): the values numpy averages, in its order. Equal floats are the
+    same bits except for zeros (−0.0 == 0.0), so the result is numpy's whenever there is no NaN
+    (the maximum is not NaN) and no zero among them; otherwise numpy itself decides.
+    """
+    n = x.shape[0] if x.ndim == 1 else 0
+    if n < 2 or x.dtype != np.float64 or math.isnan(float(x.max())):
+        return float(np.median(x))
+    k = n // 2
+    part = np.partition(x, k)
+    middle = part[k:k + 1] if n % 2 else np.array([part[:k].max(), part[k]])
+    if not middle.all():  # a zero: which one is numpy's to say
+        return float(np.median(x))
+    return float(np.mean(middle))

@@ -30,6 +30,7 @@ from ofbe_data.io.recording import (
     SKIP_NON_NUMERIC,
     SKIP_OUT_OF_RANGE,
     ReadDiagnostics,
+    median,
 )
 from ofbe_data.labelling.stationarity import row_sum
 
@@ -129,7 +130,7 @@ def norm_problem(mean: np.ndarray, g: float, max_deviation: float = MAX_NORM_DEV
 def typical_reading(acc: np.ndarray) -> np.ndarray:
     """A reading whose norm is the recording's median norm (robust to taps and motion)."""
     norms = np.sqrt(np.sum(acc * acc, axis=1))
-    return np.array([float(np.median(norms)), 0.0, 0.0]) if norms.size else np.zeros(3)
+    return np.array([median(norms), 0.0, 0.0]) if norms.size else np.zeros(3)
 
 
 def typical_norm_problem(acc: np.ndarray, g: float, max_deviation: float = MAX_NORM_DEVIATION,
@@ -212,7 +213,7 @@ def rate_step(t: np.ndarray, block: int = 500, median_step: float | None = None,
     if t.size < 2 * block:
         return None
     steps = np.diff(t)
-    overall = float(np.median(steps)) if median_step is None else median_step
+    overall = median(steps) if median_step is None else median_step
     if not overall > 0:
         return None
     n = steps.size // block
@@ -269,9 +270,24 @@ def without_repeats(x: np.ndarray) -> np.ndarray:
     x = np.asarray(x, dtype=np.float64)
     if x.shape[0] < 2:
         return x
-    keep = np.ones(x.shape[0], dtype=bool)
-    keep[1:] = np.any(x[1:] != x[:-1], axis=1)
-    return x if keep.all() else x[keep]
+    keep = _repeats_dropped(np.ascontiguousarray(x.T))
+    return x if keep is None else x[keep]
+
+
+def _repeats_dropped(columns: np.ndarray) -> np.ndarray | None:
+    """The samples to keep of ``x`` given as its contiguous columns (``x.T``, (k, M), M ≥ 2):
+    the mask ``keep[0] = True``, ``keep[1:] = np.any(x[1:] != x[:-1], axis=1)``, or None when it
+    keeps every sample. One comparison per column over contiguous values, the columns' results
+    or-ed together: the same booleans as the row-wise ``any`` (False for no column)."""
+    keep = np.ones(columns.shape[1], dtype=bool)
+    changed = keep[1:]
+    if columns.shape[0] == 0:
+        changed[:] = False
+        return keep
+    np.not_equal(columns[0, 1:], columns[0, :-1], out=changed)
+    for col in columns[1:]:
+        changed |= col[1:] != col[:-1]
+    return None if changed.all() else keep
 
 
 def clipped_samples(x: np.ndarray, min_count: int = 5, min_fraction: float = 0.01,
@@ -294,11 +310,15 @@ def clipped_samples(x: np.ndarray, min_count: int = 5, min_fraction: float = 0.0
     min_count, min_fraction
         The extreme must occur at least this often (and in this fraction of the samples).
     """
-    x = without_repeats(x)
-    n = x.shape[0]
-    need = max(min_count, min_fraction * n)
+    x = np.asarray(x, dtype=np.float64)
     columns = np.ascontiguousarray(x.T)  # contiguous columns: the counts and extremes are exact either way
-    for k in range(x.shape[1]):
+    if x.shape[0] >= 2:  # without_repeats(x), on the columns
+        keep = _repeats_dropped(columns)
+        if keep is not None:
+            columns = columns[:, keep]
+    n = columns.shape[1]
+    need = max(min_count, min_fraction * n)
+    for k in range(columns.shape[0]):
         col = columns[k]
         if col.size == 0:
             continue

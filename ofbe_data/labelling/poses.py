@@ -42,6 +42,7 @@ import numpy as np
 
 from ofbe_data.core.errors import ConfigError, OfbeError
 from ofbe_data.io.gravity import G0
+from ofbe_data.io.recording import median
 from ofbe_data.labelling.multiposition import BASE_MODELS, MODELS, PoseFit, fit_poses, min_poses
 
 FLOOR_INITIAL = "initial quiet stretch"  #: ``floor_source``: the first ``init_quiet_s`` set the floor
@@ -280,13 +281,13 @@ def noise_floor(var: np.ndarray, window: int, fs_hz: float, params: PoseParams) 
     sums = np.concatenate(([0.0], np.cumsum(var)))
     quietest = int(np.argmin(sums[length:] - sums[:-length]))
     lowest = 3.0 * params.min_noise_mps2**2
-    floor_quietest = max(float(np.median(var[quietest:quietest + length])), lowest)
-    floor_initial = float(np.median(var[:length]))
+    floor_quietest = max(median(var[quietest:quietest + length]), lowest)
+    floor_initial = median(var[:length])
     if floor_initial <= params.init_accept_ratio * floor_quietest:
         first, source = max(floor_initial, lowest), FLOOR_INITIAL
     else:
         first, source = floor_quietest, FLOOR_QUIETEST
-    floor = float(np.median(var[var <= params.init_accept_ratio * first]))
+    floor = median(var[var <= params.init_accept_ratio * first])
     return max(floor, lowest), source
 
 

@@ -14,6 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ofbe_data.io.recording import median
+
 
 @dataclass(frozen=True)
 class StaticParams:
@@ -61,8 +63,40 @@ def column_mean(x: np.ndarray, scratch: np.ndarray | None = None) -> np.ndarray:
     """
     if not _rows_of_three(x):
         return x.mean(axis=0)
-    c = np.cumsum(x, axis=0, out=scratch)
+    c = running_sums(x, scratch)
     return (c[-1] + 0.0) / x.shape[0]
+
+
+def running_sums(x: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """``np.cumsum(x, axis=0, out=out)`` with the same bits, for an (N, 3) array in fewer passes.
+
+    A cumulative sum is sequential per column: ``out[i] = out[i − 1] + x[i]``, from
+    ``out[0] = x[0]``. Two columns viewed as one complex128 column run as one cumulative sum
+    whose complex additions are those two real additions, side by side (complex addition adds
+    the real parts and the imaginary parts, nothing else), so the loop makes one pass for the
+    first two columns and one for the third. Other shapes and layouts are left to numpy.
+
+    Parameters
+    ----------
+    x
+        (N, 3) array.
+    out
+        Optional (N, 3) float64 buffer for the result (overwritten).
+
+    Returns
+    -------
+    ndarray, shape (N, 3)
+        ``out`` when given.
+    """
+    if not (_rows_of_three(x) and (out is None or (out.shape == x.shape and out.dtype == np.float64
+                                                   and out.flags.c_contiguous
+                                                   and not np.may_share_memory(x, out)))):
+        return np.cumsum(x, axis=0, out=out)
+    if out is None:
+        out = np.empty(x.shape)
+    np.cumsum(x[:, :2].view(np.complex128)[:, 0], out=out[:, :2].view(np.complex128)[:, 0])
+    np.cumsum(x[:, 2], out=out[:, 2])
+    return out
 
 
 def row_sum(x: np.ndarray) -> np.ndarray:
@@ -87,7 +121,7 @@ def centred_sums(acc: np.ndarray, mean: np.ndarray | None = None) -> tuple[np.nd
     if mean is None:
         mean = column_mean(x, c[1:] if x.shape[0] else None)
     c[0] = 0.0
-    np.cumsum(x - mean, axis=0, out=c[1:])
+    running_sums(x - mean, c[1:])
     return mean, c
 
 
@@ -121,7 +155,7 @@ def moving_variance_norm(acc: np.ndarray, window: int, mean: np.ndarray | None =
     c2 = np.empty((n + 1, k))
     c2[0] = 0.0
     np.multiply(x, x, out=x)
-    np.cumsum(x, axis=0, out=c2[1:])
+    running_sums(x, c2[1:])
     s1 = c1[window:] - c1[:-window]
     s2 = c2[window:] - c2[:-window]
     # var = (s2 − s1·s1 / window) / (window − 1)
@@ -194,7 +228,7 @@ def check_static(acc: np.ndarray, fs_hz: float, params: StaticParams = StaticPar
 
 def _static_check(v: np.ndarray, n: int, window: int, params: StaticParams) -> StaticCheck:
     """:func:`check_static` from the moving variance norm ``v`` of its ``n`` samples."""
-    floor = float(np.median(v))
+    floor = median(v)
     threshold = min(params.variance_factor * floor, params.max_std_mps2**2)
     moving = v > threshold
     if not moving.any():  # a still segment: every sample is static

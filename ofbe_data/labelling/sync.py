@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ofbe_data.core.geometry import mul3
-from ofbe_data.io.recording import Recording
+from ofbe_data.io.recording import Recording, median
 from ofbe_data.labelling.stationarity import centred_sums, row_sum
 
 
@@ -147,7 +147,7 @@ def highpass(t: np.ndarray, acc: np.ndarray, highpass_s: float,
     x = acc - mean
     if n < 3:
         return x
-    dt = float(np.median(np.diff(t))) if median_step is None else median_step
+    dt = median(np.diff(t)) if median_step is None else median_step
     w = int(max(3, round(highpass_s / dt)) | 1)
     w = min(w, n if n % 2 else n - 1)
     half = w // 2
@@ -205,7 +205,7 @@ def _median_at_most(x: np.ndarray, bound: float, factor: float, ceiling: float) 
     n = x.size
     if factor > 0 and factor * bound <= ceiling and int(np.count_nonzero(x > bound)) < n - n // 2:
         return bound
-    return float(np.median(x))
+    return median(x)
 
 
 @dataclass(frozen=True)
@@ -292,23 +292,30 @@ def _lag_at(t_dut: np.ndarray, x_dut: np.ndarray, t_ref: np.ndarray, x_ref: np.n
         return float("nan"), float("nan")
     td, xd = t_dut[a:b], np.ascontiguousarray(x_dut[a:b])
     xd = xd - xd.mean(axis=0)
-    tq = (td - to_ref)[None, :] - lags[:, None]
+    xd_cols = np.ascontiguousarray(xd.T)  # each channel's values side by side for the products
+    # the query times tq[lag, sample] = (td − to_ref) − lag, built transposed: np.interp finds each
+    # query's interval starting from the previous one's, and one sample's lags lie within an
+    # interval or two of each other where one lag's samples do not (a third faster); each value
+    # depends only on its own query, so the transpose back holds the same numbers
+    tq_t = (td - to_ref)[:, None] - lags[None, :]
     # only the reference samples the search can reach are interpolated; td and lags increase,
     # so the extremes of tq are two of its corners
-    lo = max(int(np.searchsorted(t_ref, min(tq[0, 0], tq[-1, 0]))) - 1, 0)
-    hi = int(np.searchsorted(t_ref, max(tq[0, -1], tq[-1, -1]))) + 1
+    lo = max(int(np.searchsorted(t_ref, min(tq_t[0, 0], tq_t[0, -1]))) - 1, 0)
+    hi = int(np.searchsorted(t_ref, max(tq_t[-1, 0], tq_t[-1, -1]))) + 1
     tr = t_ref[lo:hi]
     xs = x_ref[lo:hi] if ref_map is None else mul3(x_ref[lo:hi], ref_map)
     score = np.zeros(lags.size)
     energy_r = np.zeros(lags.size)
-    product = np.empty_like(tq)
+    product = np.empty((lags.size, td.size))
+    xr = np.zeros_like(product)
     for c in range(xd.shape[1]):
         # outside the reference's span np.interp repeats its edge value: a constant, which the
         # mean removal turns into zero correlation
-        xr = np.interp(tq, tr, xs[:, c]) if tr.size else np.zeros_like(tq)
+        if tr.size:
+            xr[...] = np.interp(tq_t, tr, xs[:, c]).T
         xr -= xr.mean(axis=1, keepdims=True)
         # elementwise products and numpy's own sums, not BLAS: the same last bits on every machine
-        score += np.sum(np.multiply(xr, xd[:, c], out=product), axis=1)
+        score += np.sum(np.multiply(xr, xd_cols[c], out=product), axis=1)
         energy_r += np.sum(np.multiply(xr, xr, out=product), axis=1)
     score = score / np.sqrt(energy_r * float(np.sum(xd * xd)) + 1e-30)
     k = int(np.argmax(score))

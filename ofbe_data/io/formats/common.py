@@ -32,6 +32,7 @@ from ofbe_data.io.recording import (
     SKIP_NON_NUMERIC,
     Gap,
     SkippedLine,
+    median,
 )
 
 WRAP_US = 2**32
@@ -539,8 +540,10 @@ def _clean_times_fast(t: np.ndarray, max_step: float, modulus: int | None
         if not bool(np.all(u[1:] > u[:-1])):  # the running sum stalled (tiny steps): general path
             return None
         out[1:] = float(t[0]) + u
-    else:
+    elif wraps or t.dtype != np.int64:
         out[1:] = float(t[0]) + np.cumsum(d, dtype=np.int64)
+    else:  # the running sum of the (exact, positive, bounded) integer steps is t − t[0] itself
+        out[1:] = float(t[0]) + (t[1:] - t[0])
     return out, wraps
 
 
@@ -567,7 +570,7 @@ def find_gaps(t: np.ndarray, lines: np.ndarray, period_s: float | None,
     if t.size < 2:
         return ()
     dt = np.diff(t)
-    period = float(np.median(dt)) if period_s is None else period_s
+    period = median(dt) if period_s is None else period_s
     idx = np.flatnonzero(dt > (GAP_FACTOR if factor is None else factor) * period)
     return tuple(
         Gap(int(lines[i + 1]), float(t[i + 1]), float(dt[i]), int(round(dt[i] / period)) - 1)

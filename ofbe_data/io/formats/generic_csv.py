@@ -41,7 +41,7 @@ from ofbe_data.io.formats.filebytes import read_file_bytes
 from ofbe_data.io.formats.writing import _assemble, _csv_body, fixed_point
 from ofbe_data.io.gravity import G0
 from ofbe_data.io.manifest import WHITESPACE, CsvMapping, DeviceSpec
-from ofbe_data.io.recording import GYRO, TEMPERATURE, ReadDiagnostics, Recording, SkippedLine
+from ofbe_data.io.recording import GYRO, TEMPERATURE, ReadDiagnostics, Recording, SkippedLine, median
 
 _TIME_SCALE = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 _ACC_SCALE = {"m/s2": 1.0, "g": G0, "mg": G0 / 1000.0}
@@ -233,8 +233,8 @@ def _gap_period(t: np.ndarray) -> tuple[float, float]:
     d = np.diff(t)
     if d.size == 0:
         return float("nan"), float("inf")
-    med = float(np.median(d))
-    mad = float(np.median(np.abs(d - med)))
+    med = median(d)
+    mad = median(np.abs(d - med))
     return med, max(1.5 * med, med + JITTER_GAP_MADS * mad)
 
 
@@ -243,7 +243,7 @@ def spacing_stats(t: np.ndarray) -> dict[str, str]:
     d = np.diff(t)
     if d.size == 0:
         return {}
-    med = float(np.median(d))
+    med = median(d)
     cv = float(np.std(d) / med) if med > 0 else float("nan")
     return {"step_median_s": f"{med:.6g}", "step_cv": f"{cv:.4g}", "step_max_s": f"{float(d.max()):.6g}"}
 
@@ -300,7 +300,7 @@ def read_generic_csv(path: str | Path, mapping: CsvMapping, device: str | None =
         body.lines = body.lines[order]
     body.values["__t"] = t_raw
     d = np.diff(t_raw)
-    typical = float(np.median(d[d > 0])) if np.any(d > 0) else 0.0
+    typical = median(d[d > 0]) if np.any(d > 0) else 0.0
     max_step = max(MAX_STEP_S, 10.0 / rate if rate else 0.0, 10.0 * typical)
     try:
         t, _ = _clean_times(body, t_raw, max_step)
