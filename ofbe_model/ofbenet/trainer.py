@@ -139,8 +139,9 @@ def prescale(model: keras.Model, windows: np.ndarray) -> np.ndarray:
         layer = model.get_layer(name)
         scale = np.asarray(_as_list(layer.scale), dtype=np.float32)
         offset = np.asarray(_as_list(layer.offset), dtype=np.float32)
-        x = x * scale
-        x += offset
+        with np.errstate(over="ignore", invalid="ignore"):  # as the layers: inf and NaN pass through
+            x = x * scale
+            x += offset
     return x
 
 
