@@ -94,8 +94,9 @@ class OFBENetParams:
         Seed of the validation split, weight initialisation, shuffling and dropout.
     jit_compile
         Compile the training step with XLA. Off by default: on a 2-core CPU an XLA epoch is
-        15–30 % shorter but each fit first spends 2–4 s compiling, so an early-stopped fold
-        takes about as long either way (benchmarks/ofbenet_speed.py); and without XLA the
+        15–30 % shorter but compiling takes 2–4 s for each trainer and batch shape (a process
+        keeps its compiled trainer across fits, :mod:`ofbe_model.ofbenet.trainer`), every
+        weight differs from the committed models' (benchmarks/ofbenet_speed.py); and without XLA the
         determinism rests on TensorFlow's op determinism rather than on XLA's code
         generation. With XLA, op determinism is not enabled (Keras would turn XLA off): see
         the module docstring. Both settings are deterministic on CPU but give different
