@@ -19,6 +19,7 @@ The weights are bit-identical to those of a trainer built for the fit alone (tes
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -42,7 +43,10 @@ class _Entry:
     optimizer_start: list[np.ndarray]
 
 
-_TRAINERS: dict[tuple[object, ...], _Entry] = {}
+#: Trainers kept per process, the least recently used dropped first (a worker of the paper
+#: pipeline uses four: fixed and open batch sizes, for training and for validation).
+MAX_TRAINERS = 8
+_TRAINERS: OrderedDict[tuple[object, ...], _Entry] = OrderedDict()
 
 
 def trainer_key(window_length: int, params: OFBENetParams, n_train: int, n_val: int) -> tuple[object, ...]:
@@ -109,7 +113,10 @@ def trainer_for(model: keras.Model, params: OFBENetParams, n_train: int, n_val: 
     entry = _TRAINERS.get(key)
     if entry is None:
         entry = _TRAINERS[key] = _build_trainer(t, params)
+        while len(_TRAINERS) > MAX_TRAINERS:
+            _TRAINERS.popitem(last=False)
     else:
+        _TRAINERS.move_to_end(key)
         for v, value in zip(entry.trainer.optimizer.variables, entry.optimizer_start, strict=True):
             v.assign(value)
     copy_state(model, entry.trainer)

@@ -193,6 +193,19 @@ def test_a_reused_trainer_trains_what_a_fresh_one_does() -> None:
         assert a.history_ == b.history_
 
 
+def test_the_trainers_kept_are_bounded(monkeypatch) -> None:
+    # the least recently used trainer goes; a fit after that trains on a new one, the same weights
+    monkeypatch.setattr(trainer, "MAX_TRAINERS", 1)
+    data = [synthetic(40, seed=5), synthetic(26, seed=6)]
+    trainer.clear()
+    first = OFBENet(max_epochs=1, seed=2).fit(*data[0])
+    OFBENet(max_epochs=1, seed=2).fit(*data[1])
+    assert len(trainer._TRAINERS) == 1
+    again = OFBENet(max_epochs=1, seed=2).fit(*data[0])
+    assert all(np.array_equal(p, q) for p, q in zip(first.model_.get_weights(), again.model_.get_weights(),
+                                                     strict=True))
+
+
 def test_prescaling_is_the_models_own_input_scaling() -> None:
     x, _, _ = synthetic(6, seed=8)
     x[0, :3] = [[0.0, -0.0, 1e-30], [3e38, -3e38, 1.0], [np.nan, np.inf, -np.inf]]
