@@ -20,7 +20,6 @@ The weights are bit-identical to those of a trainer built for the fit alone (tes
 from __future__ import annotations
 
 from collections import OrderedDict
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -144,16 +143,12 @@ def prescale(model: keras.Model, windows: np.ndarray) -> np.ndarray:
     x = np.asarray(windows, dtype=np.float32)
     for name in (INPUT_CENTRING, INPUT_SCALING):
         layer = model.get_layer(name)
-        scale = np.asarray(_as_list(layer.scale), dtype=np.float32)
-        offset = np.asarray(_as_list(layer.offset), dtype=np.float32)
+        scale = np.asarray(layer.scale, dtype=np.float32)  # a number or one per channel
+        offset = np.asarray(layer.offset, dtype=np.float32)
         with np.errstate(over="ignore", invalid="ignore"):  # as the layers: inf and NaN pass through
             x = x * scale
             x += offset
     return x
-
-
-def _as_list(value: float | Sequence[float]) -> list[float]:
-    return [float(v) for v in value] if isinstance(value, list | tuple) else [float(value)]
 
 
 def clear() -> None:
