@@ -1,7 +1,10 @@
 """``ofbe-predict MODEL RECORDING...``: bias of new stationary recordings from a saved model.
 
-MODEL is a saved OFBENet (``.keras``, loaded in Keras' safe mode) or a fitted
-``gravity-prior`` (``.json``). A RECORDING is a session folder (every DUT file of every
+MODEL is a saved OFBENet (``.keras``, loaded in Keras' safe mode), a fitted
+``gravity-prior`` (``.json``), or a folder of deployed models (``models/<dataset>``, see
+:mod:`ofbe_model.deploy.final`): a folder holding one model for every device, or a model set
+(``models.json``) of one model per device, from which each recording gets its own device's
+model (``--estimator`` says which of the two kinds). A RECORDING is a session folder (every DUT file of every
 recording its manifest names; format, device and local gravity from the manifest) or a
 single ``ofbe-logger`` / ``mscip-csv`` file (``--device`` and ``--g-local`` then say what
 the manifest would). Each file is read with the toolkit's validating readers; the first
@@ -20,6 +23,7 @@ error.
 
 from __future__ import annotations
 
+import json
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -37,10 +41,13 @@ from ofbe_data.io.manifest import MANIFEST_NAME, load_manifest
 from ofbe_data.io.recording import Recording
 from ofbe_data.labelling.checks import norm_problem
 from ofbe_data.labelling.stationarity import StaticParams, check_static, longest_run
+from ofbe_model.deploy.final import OFBENET_NAME, PRIOR_NAME, SET_FORMAT, SET_NAME
 from ofbe_model.estimators.base import Estimator, EstimatorError
 from ofbe_model.estimators.domain import TrainingDomain, domain_problems, window_direction
 
 DEFAULT_WINDOW = 3000
+MODEL_FILES = {"ofbenet": OFBENET_NAME, "gravity-prior": PRIOR_NAME}
+"""The deployed models' file names (:mod:`ofbe_model.deploy.final`), by estimator."""
 
 
 @dataclass(frozen=True)
@@ -73,6 +80,119 @@ def load_model(path: str | Path) -> Estimator:
         return GravityPrior.load(path)
     raise EstimatorError(f"{path}: expected a saved OFBENet (.keras) or gravity-prior (.json), "
                          f"found a {path.suffix or 'suffix-less'} file")
+
+
+def _set_members(folder: Path) -> dict[str, str]:
+    """Device → subfolder of a model set's ``models.json``."""
+    index = folder / SET_NAME
+    try:
+        doc = json.loads(index.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise EstimatorError(f"{index}: expected a model-set index ({SET_FORMAT}), found an unreadable file "
+                             f"({exc})") from None
+    devices = doc.get("devices") if isinstance(doc, dict) else None
+    good = isinstance(doc, dict) and doc.get("format") == SET_FORMAT and isinstance(devices, dict) and all(
+        isinstance(k, str) and isinstance(v, str) and v and Path(v).name == v and v not in (".", "..")
+        for k, v in devices.items())
+    if not good:
+        raise EstimatorError(f"{index}: expected a model-set index ({SET_FORMAT}: 'devices', each a device "
+                             f"id and its subfolder's name), found {str(doc)[:120]}")
+    return devices
+
+
+def model_files(path: str | Path, estimator: str = "ofbenet") -> dict[str | None, Path]:
+    """The model file(s) ``ofbe-predict MODEL`` runs, by device.
+
+    Parameters
+    ----------
+    path
+        A model file; a deployed model's folder (``models/gravity-aligned``); or a model set's
+        folder (``models/rotated``, with ``models.json``: one model per device).
+    estimator
+        Which deployed model of a folder: ``ofbenet`` (``final.keras``) or ``gravity-prior``
+        (``gravity-prior.json``).
+
+    Returns
+    -------
+    dict
+        ``{None: file}`` for one model that serves every device, else device → file.
+
+    Raises
+    ------
+    EstimatorError
+        No such file or folder (a file that a model set's folder would hold per device is named
+        with the folder to pass instead), an unknown estimator, or a folder without the file.
+    """
+    path = Path(path)
+    if estimator not in MODEL_FILES:
+        raise EstimatorError(f"--estimator: expected one of {', '.join(MODEL_FILES)}, found {estimator!r}")
+    if path.is_dir():
+        if (path / SET_NAME).is_file():
+            members = _set_members(path)
+            files = {device: path / sub / MODEL_FILES[estimator] for device, sub in members.items()}
+            missing = [str(f) for f in files.values() if not f.is_file()]
+            if missing:
+                raise EstimatorError(f"{path / SET_NAME}: expected each device's model, found no "
+                                     f"{', '.join(missing)}")
+            return dict(files)
+        file = path / MODEL_FILES[estimator]
+        if not file.is_file():
+            raise EstimatorError(f"{path}: expected a deployed model's folder holding "
+                                 f"{MODEL_FILES[estimator]} (--estimator {estimator}) or a model set "
+                                 f"({SET_NAME}), found neither")
+        return {None: file}
+    if not path.exists() and (path.parent / SET_NAME).is_file():
+        members = _set_members(path.parent)
+        raise EstimatorError(f"{path}: no such file; {path.parent} holds one model per device "
+                             f"({', '.join(sorted(members))}): pass the folder {path.parent} and each "
+                             f"recording gets its own device's model, or {path.parent}/<device>/{path.name}")
+    return {None: path}
+
+
+def predict_files(files: dict[str | None, Path], items: Sequence[Target], window_length: int | None,
+                  allow_outside: bool = False) -> tuple[list[dict[str, Any]], dict[str, Estimator]]:
+    """:func:`predict` with each target's own model (:func:`model_files`).
+
+    Parameters
+    ----------
+    files
+        ``{None: file}`` or device → file.
+    items
+        The targets.
+    window_length
+        Window length for models that take any length (None: :data:`DEFAULT_WINDOW`).
+    allow_outside
+        As in :func:`predict`.
+
+    Returns
+    -------
+    results, models
+        One result per target, in order (with ``model``, the file, when ``files`` is per
+        device; a device the set has no model for gets an error naming the devices it has);
+        the loaded models by file.
+    """
+    per_device = None not in files
+    results: list[dict[str, Any] | None] = [None] * len(items)
+    groups: dict[Path, list[int]] = {}
+    for i, t in enumerate(items):
+        file = files.get(t.device) if per_device else files[None]
+        if file is None:
+            results[i] = {"file": str(t.path), "device": t.device, "g_local": t.g_local,
+                          "error": f"no model for device {t.device!r} in this model set (it has one for "
+                                   f"{', '.join(sorted(str(d) for d in files))})"}
+            continue
+        groups.setdefault(file, []).append(i)
+    models: dict[str, Estimator] = {}
+    for file, index in groups.items():
+        model = load_model(file)
+        models[str(file)] = model
+        length = window_length_of(model) or (window_length if window_length is not None else DEFAULT_WINDOW)
+        entries = predict(model, [items[i] for i in index], length, allow_outside)
+        for i, entry in zip(index, entries, strict=True):
+            if per_device:
+                entry = {**entry, "model": str(file)}
+            results[i] = entry
+    return [r for r in results if r is not None], models
 
 
 def window_length_of(model: Estimator) -> int | None:
@@ -200,6 +320,10 @@ def predict(model: Estimator, items: Sequence[Target], length: int, allow_outsid
         bias = np.asarray(model.predict(X, meta), dtype=np.float64)
         std = np.asarray(model.predict_std(X, meta), dtype=np.float64) if model.has_std else None
         for j, i in enumerate(ready):
+            if not (np.isfinite(bias[j]).all() and (std is None or np.isfinite(std[j]).all())):
+                results[i]["error"] = ("the model's estimate is not finite (NaN or inf): the model file is "
+                                       "broken (non-finite weights?); retrain or re-export it")
+                continue
             results[i]["bias_m_s2"] = [round(float(v), 9) for v in bias[j]]
             results[i]["std_m_s2"] = None if std is None else [round(float(v), 9) for v in std[j]]
             results[i]["window_samples"] = length

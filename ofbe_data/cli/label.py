@@ -17,13 +17,16 @@ from pathlib import Path
 from ofbe_data.core.atomic import folders_under, remove_new_empty_folders
 from ofbe_data.core.cli import add_jobs, add_params, add_scheduler, command, fail, io_failure
 from ofbe_data.core.errors import OfbeError
+from ofbe_data.io.manifest import MANIFEST_NAME
 from ofbe_data.labelling.batch import (
     check_output_folder,
     expand_sessions,
     label_sessions,
+    skipped_folders,
 )
 from ofbe_data.labelling.convergence import read_recommendation
 from ofbe_data.labelling.labels import (
+    SessionLabels,
     label_params_from,
     read_label_section,
 )
@@ -53,6 +56,32 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+def _count(n: int, what: str) -> str:
+    """``1 session``, ``2 sessions``."""
+    return f"{n} {what}" if n == 1 else f"{n} {what}s"
+
+
+def summary(done: Sequence[SessionLabels], failed: int) -> str:
+    """The run's one-line summary: sessions, labels (of how many recordings, how many of them
+    poses of multi-position recordings), rejections and warnings.
+
+    A label is one row: a (recording, device) pair, or one pose of it in a multi-position
+    recording, so 18 poses of one recording read "18 labels of 1 recording (18 poses)".
+    """
+    rows = [r for s in done for r in s.rows]
+    recordings = {(s.manifest.session, r["recording"]) for s in done for r in s.rows}
+    poses = sum(1 for r in rows if r.get("pose") is not None and r.get("pose") == r.get("pose"))
+    rejected = sum(len(s.rejections) for s in done)
+    warnings = sum(len(s.warnings) for s in done)
+    tail = f", {rejected} rejected, {_count(warnings, 'warning')}"
+    if not rows:
+        return f"{_count(len(done), 'session')} read, {failed} failed; nothing labelled" + tail
+    of = f"{_count(len(rows), 'label')} of {_count(len(recordings), 'recording')}"
+    if poses:
+        of += f" ({_count(poses, 'pose')})"
+    return f"{_count(len(done), 'session')} labelled, {failed} failed; {of}" + tail
+
+
 @command(PROG)
 def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
@@ -67,6 +96,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.jobs < 1:
             return fail(PROG, f"--jobs: expected an integer ≥ 1, found {args.jobs}", 2)
         folders = expand_sessions(args.paths)
+        skipped = skipped_folders(args.paths)
         check_output_folder(Path(args.out))
     except OfbeError as exc:
         return fail(PROG, str(exc), 2)
@@ -93,10 +123,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     rows = sum(len(s.rows) for s in done)
     rejected = [r for s in done for r in s.rejections]
     if not args.quiet:
-        warnings = sum(len(s.warnings) for s in done)
-        print(f"ofbe-label: {len(done)} sessions labelled, {len(failed)} failed; {rows} recordings "
-              f"labelled, {len(rejected)} rejected, {warnings} warnings -> {args.out}"
-              + (f" (with {len(done)} session figures)" if args.plots else ""), file=sys.stderr)
+        for folder in skipped:
+            print(f"ofbe-label: note: {folder}: no {MANIFEST_NAME} in it, not a session (skipped)",
+                  file=sys.stderr)
+        print(f"ofbe-label: {summary(done, len(failed))} -> {args.out}"
+              + (f" (with {_count(len(done), 'session figure')})" if args.plots else ""), file=sys.stderr)
     if failed:
         return 1
     if rows == 0:

@@ -62,7 +62,7 @@ from ofbe_data.io.manifest import (
 )
 from ofbe_data.io.recording import Recording
 from ofbe_data.io.yamlio import YamlDocument
-from ofbe_data.labelling.batch import UsageError, expand_sessions
+from ofbe_data.labelling.batch import UsageError, expand_sessions, skipped_folders
 from ofbe_data.labelling.checks import MAX_LEVEL_TILT_DEG
 from ofbe_data.labelling.labels import SessionLabels, label_params_from, label_session, read_label_section
 from ofbe_data.labelling.next_pose import report_lines
@@ -445,6 +445,8 @@ def _check(args: argparse.Namespace) -> int:
         folders = expand_sessions(args.dirs)
     except OfbeError as exc:
         return fail(PROG, str(exc), EXIT_USAGE)
+    for folder in skipped_folders(args.dirs):
+        print(f"{PROG}: note: {folder}: no {MANIFEST_NAME} in it, not a session (skipped)", file=sys.stderr)
     results = [_check_one(f, params) for f in folders]
     return EXIT_OK if all(results) else EXIT_DATA
 

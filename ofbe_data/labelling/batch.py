@@ -56,6 +56,22 @@ def expand_sessions(paths: Sequence[str | Path]) -> list[Path]:
     return out
 
 
+def skipped_folders(paths: Sequence[str | Path]) -> list[Path]:
+    """Subfolders of the campaign folders named by ``paths`` that :func:`expand_sessions` passes
+    over because they hold no ``session.yaml``, so that a command can say so.
+
+    Folders whose names start with ``_`` or ``.`` (the simulator's ``_truth``, hidden folders)
+    are meant to be passed over and are not listed.
+    """
+    out: list[Path] = []
+    for arg in paths:
+        p = Path(arg)
+        if p.is_dir() and not (p / MANIFEST_NAME).is_file():
+            out += sorted(c for c in p.iterdir() if c.is_dir() and not c.name.startswith(("_", "."))
+                          and not (c / MANIFEST_NAME).is_file())
+    return out
+
+
 @dataclass
 class Outcome:
     """What happened to one session.

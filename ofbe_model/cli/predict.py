@@ -15,7 +15,7 @@ from ofbe_data.core.cli import EXIT_USAGE, add_verbose, command, fail, quiet_lib
 from ofbe_data.core.errors import OfbeError
 from ofbe_data.io.gravity import G0 as STANDARD_GRAVITY
 from ofbe_model.estimators.base import EstimatorError
-from ofbe_model.predict import DEFAULT_WINDOW, load_model, predict, targets, trained_on, window_length_of
+from ofbe_model.predict import DEFAULT_WINDOW, MODEL_FILES, model_files, predict_files, targets, trained_on
 
 PROG = "ofbe-predict"
 MIN_WINDOW = 2
@@ -64,7 +64,11 @@ def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="ofbe-predict",
                                 description="Bias (and its standard deviation, where the method has one) of "
                                             "stationary recordings from a saved OFBENet or gravity-prior.")
-    p.add_argument("model", help="saved model: .keras (OFBENet) or .json (gravity-prior)")
+    p.add_argument("model", help="saved model: .keras (OFBENet) or .json (gravity-prior), or a folder of "
+                                 "deployed models (models/<dataset>; a folder with models.json holds one "
+                                 "model per device and each recording gets its own device's)")
+    p.add_argument("--estimator", choices=tuple(MODEL_FILES), default="ofbenet",
+                   help="which deployed model of a folder MODEL (default: %(default)s)")
     p.add_argument("recordings", nargs="+", help="session folders or raw device files")
     p.add_argument("--device", help="device id for bare files (gravity-prior uses its per-device prior)")
     p.add_argument("--g-local", type=_gravity,
@@ -87,23 +91,25 @@ def main(argv: Sequence[str] | None = None) -> int:
         return fail(PROG, f"--window-length: expected an integer >= {MIN_WINDOW} (samples), found "
                           f"{args.window_length}", EXIT_USAGE)
     try:
-        model = load_model(args.model)
-        fixed = window_length_of(model)
-        length = fixed or (args.window_length if args.window_length is not None else DEFAULT_WINDOW)
+        files = model_files(args.model, args.estimator)
         items = targets(args.recordings, args.device, args.g_local)
-        results = predict(model, items, length, args.allow_outside_domain)
+        results, models = predict_files(files, items, args.window_length, args.allow_outside_domain)
     except OfbeError as exc:
         print(f"ofbe-predict: error: {exc}", file=sys.stderr)
         return 2 if isinstance(exc, EstimatorError) else 1
-    method = getattr(model, "name", type(model).__name__)
-    domain = trained_on(model)
+    methods = sorted({getattr(m, "name", type(m).__name__) for m in models.values()})
+    method = ", ".join(methods) or args.estimator
+    domains = {file: trained_on(m) for file, m in models.items()}
+    domain: Any = next(iter(domains.values()), None) if None in files else domains
     if args.output == "json":
         print(json.dumps(_finite({"model": str(args.model), "method": method, "trained_on": domain,
                                   "results": results}), indent=1, allow_nan=False))
     else:
         print(_table(results, method))
-    print(f"ofbe-predict: {method} trained on "
-          f"{domain or 'unknown data (a model saved before ofbe kept its training domain)'}", file=sys.stderr)
+    for file, text in domains.items():
+        where = "" if None in files else f" ({file})"
+        text = text or "unknown data (a model saved before ofbe kept its training domain)"
+        print(f"ofbe-predict: {method}{where} trained on {text}", file=sys.stderr)
     for r in results:
         for w in r.get("warnings", ()):
             print(f"ofbe-predict: warning: {r['file']}: {w}", file=sys.stderr)

@@ -21,9 +21,13 @@ from ofbe_model.deploy.final import (
     CARD_MD,
     OFBENET_NAME,
     PRIOR_NAME,
+    SET_NAME,
+    DeployError,
     ModelCardError,
+    accuracy_problems,
     card_dataset,
     dataset_hash,
+    device_rmse,
     train_final,
 )
 from ofbe_model.ofbenet.network import OFBENet
@@ -48,7 +52,7 @@ def deployed(tmp_path_factory):
         "gravity-prior-direction": {"rmse_mean": 0.03, "rmse_std": 0.005, "max_error_mean": 0.07},
         "ls-trf": {"rmse_mean": 0.2, "rmse_std": 0.01, "max_error_mean": 0.4}}}}}))
     params = OFBENetParams(max_epochs=2, es_patience=2, lr_patience=1)
-    folder = train_final(ds, tmp / "models", params, [report], progress=False)
+    (folder,) = train_final(ds, tmp / "models", params, [report], progress=False)
     return tmp, ds, folder
 
 
@@ -161,3 +165,146 @@ def test_ofbe_export_tflite_takes_the_training_data_from_the_card(deployed, tmp_
     assert len(err.strip().splitlines()) == 1 and str(moved / CARD_JSON) in err, err
     assert "tflite needs --dataset DIR" in err and "found no such folder" in err
     assert not (tmp_path / "none").exists()
+
+
+def _signal_rows(ds_path) -> tuple[np.ndarray, np.ndarray, object]:
+    data = load_dataset(ds_path)
+    meta = data.meta.reset_index(drop=True)
+    sig = np.flatnonzero(meta["window_index"].to_numpy() == 0)
+    return data.X[sig], data.y[sig], meta.iloc[sig].reset_index(drop=True)
+
+
+def test_the_cards_in_sample_figures_are_measured_on_the_saved_files(deployed) -> None:
+    """The card's in-sample RMSE per device is what the files on disk give on the dataset's
+    signals (window 0 of each recording), recomputed here from the files themselves."""
+    from ofbe_model.estimators.priors import GravityPrior
+
+    _, ds, folder = deployed
+    card = json.loads((folder / CARD_JSON).read_text())
+    X, y, meta = _signal_rows(ds)
+    for key, model in (("ofbenet", OFBENet.load(folder / OFBENET_NAME)),
+                       ("gravity-prior", GravityPrior.load(folder / PRIOR_NAME))):
+        expected = device_rmse(y, model.predict(X, meta), meta["device"].to_numpy())
+        assert card["accuracy"][key]["in_sample"] == expected
+        assert sum(v["n_signals"] for v in expected.values()) == len(meta)
+    text = (folder / CARD_MD).read_text()
+    assert "## Accuracy per device" in text and "In-sample: the file above, read back from disk" in text
+
+
+@pytest.fixture(scope="module")
+def rotated(tmp_path_factory):
+    """A rotated campaign (two boards) windowed, with a benchmark report and errors.csv."""
+    tmp = tmp_path_factory.mktemp("final-rot")
+    simulate_campaign(load_config("tiny-rotated", {"sessions": 3}), tmp / "raw" / "rot", seed=4, jobs=2,
+                      progress=False)
+    label_sessions(expand_sessions([tmp / "raw" / "rot"]), LabelParams(min_samples=1000), tmp / "labels",
+                   jobs=2, progress=False)
+    ds = build_dataset(tmp / "labels" / "rot", tmp / "raw" / "rot", tmp / "ds" / "rot",
+                       DatasetParams(window_length=T, stride=T, n_folds=3,
+                                     protocols={"rotated": ("grouped",)}),
+                       progress=False).path
+    return tmp, ds
+
+
+def _report(folder, cv_rmse: float) -> object:
+    """A benchmark report on rot/<device> whose errors.csv gives every signal an error of
+    ``cv_rmse`` (so the per-device cross-validated RMSE is exactly that) for both methods."""
+    folder.mkdir(parents=True, exist_ok=True)
+    datasets = {f"rot/{d}": {"n_folds": 5, "methods": {m: {"rmse_mean": cv_rmse, "rmse_std": 0.0,
+                                                             "max_error_mean": cv_rmse}
+                                                         for m in ("ofbenet", "gravity-prior-direction")}}
+                for d in ("sparkfun-1", "sparkfun-2")}
+    (folder / "benchmark.json").write_text(json.dumps({"protocol": "paper-rotated", "datasets": datasets}))
+    rows = ["dataset,protocol,method,seed,fold,window_id,device,err_x,err_y,err_z,err_norm"]
+    for d in ("sparkfun-1", "sparkfun-2"):
+        for m in ("ofbenet", "gravity-prior-direction", "ls-trf"):
+            for seed in (0, 1):
+                for i in range(4):
+                    rows.append(f"rot/{d},paper-rotated,{m},{seed},{i},w{i},{d},{cv_rmse},0,0,{cv_rmse}")
+    (folder / "errors.csv").write_text("\n".join(rows) + "\n")
+    return folder / "benchmark.json"
+
+
+def test_a_per_device_dataset_gets_one_model_per_device_and_predict_picks_it(rotated, tmp_path,
+                                                                             capsys) -> None:
+    """Rotated boards are benchmarked one by one, so they are deployed one by one (a model set with
+    models.json); ofbe-predict on the set's folder gives each file its own device's model; the old
+    pooled path names the folder to pass."""
+    tmp, ds = rotated
+    report = _report(tmp_path / "reports" / "paper-rotated", 10.0)
+    params = OFBENetParams(max_epochs=2, es_patience=2, lr_patience=1)
+    folders = train_final(ds, tmp_path / "models", params, [report], progress=False)
+    names = [f.relative_to(tmp_path / "models").as_posix() for f in folders]
+    assert names == ["rot/sparkfun-1", "rot/sparkfun-2"]
+    index = json.loads((tmp_path / "models" / "rot" / SET_NAME).read_text())
+    assert index["devices"] == {"sparkfun-1": "sparkfun-1", "sparkfun-2": "sparkfun-2"}
+    for folder in folders:
+        card = json.loads((folder / CARD_JSON).read_text())
+        device = folder.name
+        data = card["training_data"]
+        assert data["selected_devices"] == [device] and data["devices"] == [device]
+        assert set(card["accuracy"]["ofbenet"]["in_sample"]) == {device}
+        assert card["accuracy"]["ofbenet"]["cross_validated"] == {
+            "paper-rotated": {device: {"rmse": 10.0, "n_signals": 4, "seeds": 2}}}
+        assert card["benchmark"]["ofbenet"] == {"paper-rotated": {f"rot/{device}": {
+            "rmse_mean": 10.0, "rmse_std": 0.0, "max_error_mean": 10.0, "n_folds": 5}}}
+    session = next((tmp / "raw" / "rot").glob("*/session.yaml")).parent
+    for estimator in ("ofbenet", "gravity-prior"):
+        args = [str(tmp_path / "models" / "rot"), str(session), "--estimator", estimator,
+                "--window-length", str(T)]
+        assert predict_main(args) == 0, capsys.readouterr().err
+        out = json.loads(capsys.readouterr().out)
+        assert out["results"] and all(r["model"] == str(tmp_path / "models" / "rot" / r["device"] / (
+            OFBENET_NAME if estimator == "ofbenet" else PRIOR_NAME)) for r in out["results"])
+    assert predict_main([str(tmp_path / "models" / "rot" / OFBENET_NAME), str(session)]) == 2
+    err = capsys.readouterr().err
+    rot = tmp_path / "models" / "rot"
+    assert (f"{rot / OFBENET_NAME}: no such file; {rot} holds one model per device (sparkfun-1, sparkfun-2): "
+            "pass the folder") in err
+
+
+def test_the_deploy_fails_loudly_when_a_model_is_far_worse_than_its_cross_validated_figure(
+        rotated, tmp_path) -> None:
+    """A cross-validated figure the deployed models cannot come near (1e-9 m/s²): DeployError naming
+    each model and device with both figures, and no model left behind."""
+    _, ds = rotated
+    report = _report(tmp_path / "reports" / "paper-rotated", 1e-9)
+    params = OFBENetParams(max_epochs=1, es_patience=1, lr_patience=1)
+    with pytest.raises(DeployError) as info:
+        train_final(ds, tmp_path / "models", params, [report], progress=False)
+    text = str(info.value)
+    assert text.startswith("deployed models far worse on their own training signals than cross-validated "
+                           "(no model written):")
+    for device in ("sparkfun-1", "sparkfun-2"):
+        for model in ("ofbenet", "gravity-prior"):
+            assert f"rot/{device}: {model}, device {device}: in-sample RMSE " in text
+    assert "expected at most 1.5× the cross-validated 1e-09 m/s² (paper-rotated)" in text
+    assert not (tmp_path / "models" / "rot").exists()
+
+
+def test_accuracy_problems_compares_each_device_with_each_quoted_figure() -> None:
+    acc = {"ofbenet": {"in_sample": {"a": {"rmse": 0.15, "n_signals": 9},
+                                     "b": {"rmse": None, "n_signals": 9}},
+                       "cross_validated": {"p1": {"a": {"rmse": 0.1}}, "p2": {"a": {"rmse": 0.2}}}}}
+    problems = accuracy_problems(acc, 1.5)
+    assert problems == ["ofbenet, device b: in-sample RMSE not finite (the model gives NaN or inf on its own "
+                        "training signals)"]
+    assert accuracy_problems(acc, 1.4)[0] == (
+        "ofbenet, device a: in-sample RMSE 0.15 m/s² on its own 9 training signals, expected at most 1.4× "
+        "the cross-validated 0.1 m/s² (p1), found 1.50×")
+
+
+def test_predict_refuses_a_model_whose_estimates_are_not_finite(deployed, tmp_path, capsys) -> None:
+    """A final.keras whose weights hold NaN: each file gets an error, never a null bias (exit 1)."""
+    tmp, _, folder = deployed
+    broken = OFBENet.load(folder / OFBENET_NAME)
+    weights = broken.model_.get_weights()
+    weights[-1] = np.full_like(weights[-1], np.nan)
+    broken.model_.set_weights(weights)
+    broken.save(tmp_path / OFBENET_NAME)
+    assert predict_main([str(tmp_path / OFBENET_NAME), str(tmp / "raw" / "ga" / "ga-pc001")]) == 1
+    captured = capsys.readouterr()
+    out = json.loads(captured.out)
+    assert out["results"] and all("bias_m_s2" not in r for r in out["results"])
+    assert all(r["error"].startswith("the model's estimate is not finite (NaN or inf)")
+               for r in out["results"])
