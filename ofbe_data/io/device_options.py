@@ -2,7 +2,8 @@
 ``mscip-bin`` options (raw-formats.md, "Generic csv" and "mscip-bin").
 
 The records live here, apart from the manifest's validation (:mod:`ofbe_data.io.manifest`),
-so that readers and the detector of ``ofbe-session init`` share them.
+so that readers and the detector of ``ofbe-session init`` share them. Their fields are the keys a
+device entry of their format may hold (:data:`FORMAT_OPTIONS`, :func:`option_keys`).
 """
 
 from __future__ import annotations
@@ -11,6 +12,8 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+
+from ofbe_data.io.typedconfig import record_keys
 
 TIME_UNITS = ("s", "ms", "us", "ns", "samples")
 ACC_UNITS = ("m/s2", "g", "mg", "counts")
@@ -142,3 +145,38 @@ class BinOptions:
         if self.acc_unit != "g":
             out["acc_unit"] = self.acc_unit
         return out
+
+
+FORMAT_OPTIONS: dict[str, Any] = {"csv": CsvMapping, "mscip-bin": BinOptions}
+"""The options record of each device format that has one: its fields are keys of that format's
+manifest entries, beside ``model``, ``role``, ``format`` and ``reference_to_sensor``."""
+
+
+def option_keys(fmt: str | None) -> frozenset[str]:
+    """Keys of the options of a device entry of format ``fmt``; of every format when None."""
+    if fmt is None:
+        return frozenset().union(*(record_keys(r) for r in FORMAT_OPTIONS.values()))
+    return record_keys(FORMAT_OPTIONS[fmt]) if fmt in FORMAT_OPTIONS else frozenset()
+
+
+def option_key_paths(prefix: str) -> dict[str, tuple[str, ...]]:
+    """Each options key, and each key of ``columns``, with its path and the formats that have it.
+
+    Parameters
+    ----------
+    prefix
+        Path of a device entry, e.g. ``devices.<id>.``.
+
+    Returns
+    -------
+    dict
+        E.g. ``sample_rate_hz`` → ``("devices.<id>.sample_rate_hz with format: csv or mscip-bin",)``.
+    """
+    formats: dict[str, list[str]] = {}
+    for fmt, record in FORMAT_OPTIONS.items():
+        for key in sorted(record_keys(record)):
+            formats.setdefault(key, []).append(fmt)
+    out = {k: (f"{prefix}{k} with format: {' or '.join(f)}",) for k, f in formats.items()}
+    columns = " or ".join(formats["columns"])
+    out.update({k: (f"{prefix}columns.{k} with format: {columns}",) for k in COLUMN_KEYS})
+    return out

@@ -2,12 +2,15 @@
 
 The contract is shared/spec/raw-formats.md; docs/formats.md explains it. Validation is
 strict about what the pipeline relies on (kinds, roles, formats, device references, paths
-that stay inside the session folder, unique ids) and liberal elsewhere (unknown extra
-keys are kept, not rejected).
+that stay inside the session folder, unique ids) and about keys: an unknown key (``temprature_unit``,
+or ``fit_model``, a labelling parameter) is an error with the closest known key or where it belongs.
+The known keys are the records' fields (:data:`TOP_KEYS`, :func:`device_keys`…), so a field added
+to a record is known at once.
 """
 
 from __future__ import annotations
 
+import functools
 import os
 import re
 from dataclasses import dataclass, field
@@ -29,8 +32,11 @@ from ofbe_data.io.device_options import (
     WHITESPACE,
     BinOptions,
     CsvMapping,
+    option_key_paths,
+    option_keys,
 )
 from ofbe_data.io.gravity import local_gravity
+from ofbe_data.io.typedconfig import closest_key, key_homes, record_keys, unknown_key_found
 from ofbe_data.io.yamlio import FieldPath, YamlDocument, YamlProblem, format_field, read_yaml
 
 MANIFEST_FORMAT = "ofbe-session/1"
@@ -88,8 +94,6 @@ class DeviceSpec:
         Column/unit mapping for ``format: csv``.
     bin
         Options for ``format: mscip-bin``.
-    extra
-        Further keys of the entry, kept as written.
     """
 
     id: str
@@ -98,7 +102,6 @@ class DeviceSpec:
     format: str
     reference_to_sensor: np.ndarray | None = None
     csv: CsvMapping | None = None
-    extra: dict[str, Any] = field(default_factory=dict)
     bin: BinOptions | None = None
 
     def to_dict(self) -> dict[str, Any]:
@@ -109,7 +112,6 @@ class DeviceSpec:
             out.update(self.csv.to_dict())
         if self.bin is not None:
             out.update(self.bin.to_dict())
-        out.update(self.extra)
         return out
 
 
@@ -147,8 +149,6 @@ class SessionManifest:
         Device specs by id, in file order.
     recordings
         Recordings in file order.
-    extra
-        Unknown top-level keys, kept as written.
     """
 
     folder: Path
@@ -159,7 +159,6 @@ class SessionManifest:
     power_cycle: int
     devices: dict[str, DeviceSpec]
     recordings: tuple[RecordingSpec, ...]
-    extra: dict[str, Any] = field(default_factory=dict)
 
     @property
     def path(self) -> Path:
@@ -197,7 +196,6 @@ class SessionManifest:
             "devices": {k: d.to_dict() for k, d in self.devices.items()},
             "recordings": [r.to_dict() for r in self.recordings],
         }
-        out.update(self.extra)
         return out
 
 
@@ -206,6 +204,33 @@ def _matrix_to_list(m: np.ndarray) -> list[list[float | int]]:
     for row in np.asarray(m, dtype=float):
         rows.append([int(v) if float(v).is_integer() else float(v) for v in row])
     return rows
+
+
+TOP_KEYS = (record_keys(SessionManifest) - {"folder"}) | {"format", "gravity_mps2"}
+"""Top-level keys: :class:`SessionManifest`'s fields but ``folder``, ``format`` and the g override."""
+SITE_KEYS = record_keys(Site)
+DEVICE_KEYS = record_keys(DeviceSpec) - {"id", "csv", "bin"}
+"""Keys of every device entry: :class:`DeviceSpec`'s fields but ``id`` (its key under ``devices``)
+and the options records, whose fields stand beside these (:func:`device_keys`)."""
+RECORDING_KEYS = record_keys(RecordingSpec)
+
+
+def device_keys(fmt: Any) -> frozenset[str]:
+    """Keys of a device entry of format ``fmt`` (of any format when ``fmt`` is not a format)."""
+    return DEVICE_KEYS | option_keys(fmt if fmt in FORMATS else None)
+
+
+@functools.cache
+def manifest_key_paths() -> dict[str, tuple[str, ...]]:
+    """Every key a manifest may hold, with its paths: ``site.latitude_deg``,
+    ``recordings[i].nominal``, ``devices.<id>.time_unit with format: csv``."""
+    out: dict[str, tuple[str, ...]] = {}
+    for prefix, keys in (("", TOP_KEYS), ("site.", SITE_KEYS), ("devices.<id>.", DEVICE_KEYS),
+                         ("recordings[i].", RECORDING_KEYS)):
+        out.update({k: out.get(k, ()) + (prefix + k,) for k in sorted(keys)})
+    for key, paths in option_key_paths("devices.<id>.").items():
+        out[key] = out.get(key, ()) + paths
+    return out
 
 
 class _Validator:
@@ -228,6 +253,15 @@ class _Validator:
         raise ManifestError(
             self.path, format_field([*where, key]), "this key", "it missing", self.doc.line_of(where)
         )
+
+    def known_keys(self, mapping: dict[Any, Any], where: FieldPath, known: frozenset[str]) -> None:
+        """Refuse the first key of ``mapping`` (in file order) not in ``known``: a ManifestError at
+        it, with where the key belongs or the closest known key (:func:`unknown_key_found`)."""
+        unknown = [str(k) for k in mapping if k not in known]
+        if unknown:
+            name = unknown[0]
+            raise self.fail([*where, name], "one of " + ", ".join(sorted(known)), unknown_key_found(
+                name, known, manifest_key_paths().get(name, ()), lambda: key_homes(name, manifest=False)))
 
     def mapping(self, value: Any, where: FieldPath) -> dict[str, Any]:
         if not isinstance(value, dict):
@@ -270,6 +304,7 @@ def _parse_site(v: _Validator, data: dict[str, Any]) -> Site:
     if site_raw is None and top_g is None:
         v._missing([], "site")
     site = v.mapping(site_raw, ["site"]) if site_raw is not None else {}
+    v.known_keys(site, ["site"], SITE_KEYS)
     g = site.get("gravity_mps2", top_g)
     where: FieldPath = ["site", "gravity_mps2"] if "gravity_mps2" in site else ["gravity_mps2"]
     if g is not None:
@@ -311,8 +346,9 @@ def _parse_csv_mapping(v: _Validator, entry: dict[str, Any], where: list[str | i
     cols = v.mapping(v.get(entry, where, "columns"), [*where, "columns"])
     for key in cols:
         if key not in COLUMN_KEYS:
+            match = closest_key(str(key), COLUMN_KEYS)
             raise v.fail([*where, "columns", key], "a column key among " + ", ".join(COLUMN_KEYS),
-                         _describe(key))
+                         _describe(key) + (f" (did you mean {match}?)" if match is not None else ""))
     columns: dict[str, str | int] = {}
     for key in COLUMN_KEYS:
         if key not in cols:
@@ -380,12 +416,6 @@ def _parse_bin_options(v: _Validator, entry: dict[str, Any], where: list[str | i
     return BinOptions(rate, unit)
 
 
-_CSV_KEYS = {"columns", "time_unit", "acc_unit", "lsb_per_g", "skip_rows", "delimiter", "header", "comment",
-             "sample_rate_hz", "zero_counts", "temperature_unit", "range_g", "gyro_unit",
-             "sort_by_time"}
-_DEVICE_KEYS = {"model", "role", "format", "reference_to_sensor"} | _CSV_KEYS
-
-
 def _parse_devices(v: _Validator, data: dict[str, Any]) -> dict[str, DeviceSpec]:
     raw = v.mapping(v.get(data, [], "devices"), ["devices"])
     if not raw:
@@ -395,6 +425,7 @@ def _parse_devices(v: _Validator, data: dict[str, Any]) -> dict[str, DeviceSpec]
         where: list[str | int] = ["devices", str(dev_id)]
         v.ident(dev_id, where)
         entry = v.mapping(entry, where)
+        v.known_keys(entry, where, device_keys(entry.get("format")))
         model = v.get(entry, where, "model")
         if not isinstance(model, str) or not model:
             raise v.fail([*where, "model"], "a model name", _describe(model))
@@ -405,8 +436,7 @@ def _parse_devices(v: _Validator, data: dict[str, Any]) -> dict[str, DeviceSpec]
             r2s = _parse_rotation(v, entry["reference_to_sensor"], [*where, "reference_to_sensor"])
         csv = _parse_csv_mapping(v, entry, where) if fmt == "csv" else None
         opts = _parse_bin_options(v, entry, where) if fmt == "mscip-bin" else None
-        extra = {k: val for k, val in entry.items() if k not in _DEVICE_KEYS}
-        devices[str(dev_id)] = DeviceSpec(str(dev_id), model, role, fmt, r2s, csv, extra, opts)
+        devices[str(dev_id)] = DeviceSpec(str(dev_id), model, role, fmt, r2s, csv, opts)
     return devices
 
 
@@ -450,6 +480,7 @@ def _parse_recordings(v: _Validator, data: dict[str, Any], devices: dict[str, De
     for i, entry in enumerate(raw):
         where: list[str | int] = ["recordings", i]
         entry = v.mapping(entry, where)
+        v.known_keys(entry, where, RECORDING_KEYS)
         rid = v.ident(v.get(entry, where, "id"), [*where, "id"])
         if rid in seen_ids:
             raise v.fail([*where, "id"], "unique recording ids",
@@ -499,10 +530,6 @@ def _distinct_columns(a: DeviceSpec, b: DeviceSpec) -> bool:
     return not set(a.csv.columns[k] for k in axes) & set(b.csv.columns[k] for k in axes)
 
 
-_TOP_KEYS = {"format", "campaign", "session", "kind", "site", "gravity_mps2", "power_cycle",
-             "devices", "recordings"}
-
-
 def parse_manifest(path: Path, doc: YamlDocument) -> SessionManifest:
     """Validate a parsed manifest document; see :func:`load_manifest`."""
     v = _Validator(path, doc)
@@ -510,6 +537,7 @@ def parse_manifest(path: Path, doc: YamlDocument) -> SessionManifest:
     fmt = v.get(data, [], "format")
     if fmt != MANIFEST_FORMAT:
         raise v.fail(["format"], MANIFEST_FORMAT, _describe(fmt))
+    v.known_keys(data, [], TOP_KEYS)
     campaign = v.ident(v.get(data, [], "campaign"), ["campaign"])
     session = v.ident(v.get(data, [], "session"), ["session"])
     kind = v.choice(v.get(data, [], "kind"), ["kind"], KINDS)
@@ -518,9 +546,7 @@ def parse_manifest(path: Path, doc: YamlDocument) -> SessionManifest:
     devices = _parse_devices(v, data)
     _check_kind_rules(v, kind, devices)
     recordings = _parse_recordings(v, data, devices, path.parent)
-    extra = {k: val for k, val in data.items() if k not in _TOP_KEYS}
-    return SessionManifest(path.parent, campaign, session, kind, site, power_cycle, devices,
-                           recordings, extra)
+    return SessionManifest(path.parent, campaign, session, kind, site, power_cycle, devices, recordings)
 
 
 def load_manifest(path_or_folder: str | Path) -> SessionManifest:
@@ -538,7 +564,8 @@ def load_manifest(path_or_folder: str | Path) -> SessionManifest:
     Raises
     ------
     ManifestError
-        Naming the file, the line and the field, with what was expected and found.
+        Naming the file, the line and the field, with what was expected and found (an unknown
+        key at any level: with the closest known key or where it belongs).
     """
     path = Path(path_or_folder)
     if path.is_dir():

@@ -23,7 +23,7 @@ from typing import Any
 import yaml
 
 from ofbe_data.core.errors import ConfigError
-from ofbe_data.io.typedconfig import deep_merge
+from ofbe_data.io.typedconfig import closest_key, deep_merge
 from ofbe_data.io.yamlio import YamlProblem, read_yaml
 
 DEFAULT_PROFILE = "paper"
@@ -53,7 +53,9 @@ def load_params(params_file: str | Path = "params.yaml") -> dict[str, Any]:
     Raises
     ------
     ConfigError
-        Unreadable file, or a profile with no file in ``pipelines/profiles``.
+        Unreadable file, or a profile with no file in ``pipelines/profiles`` (with the closest
+        profile name when there is one). The keys of each section are checked by the record that
+        reads it (:func:`ofbe_data.io.typedconfig.from_plain`), not here.
     """
     params_file = Path(params_file)
     data = _read(params_file)
@@ -63,8 +65,10 @@ def load_params(params_file: str | Path = "params.yaml") -> dict[str, Any]:
     path = params_file.parent / PROFILE_DIR / f"{profile}.yaml"
     if not path.is_file():
         known = sorted(p.stem for p in (params_file.parent / PROFILE_DIR).glob("*.yaml"))
+        match = closest_key(str(profile), [DEFAULT_PROFILE, *known])
+        hint = f" (did you mean {match}?)" if match is not None else ""
         raise ConfigError(params_file, "profile", f"{DEFAULT_PROFILE} or one of {', '.join(known)}",
-                          repr(profile))
+                          repr(profile) + hint)
     return merge(data, _read(path))
 
 

@@ -750,7 +750,7 @@ def _usage_case(tmp_path: Path, case: str) -> tuple[list[object], str]:
         params.write_text("label:\n  static: {window: 3}\n", encoding="utf-8")
         return [session, "--params", params], (f"{params}: label.static.window: expected one of "
                                                "max_std_mps2, variance_factor, window_s, found an "
-                                               "unknown key")
+                                               "unknown key (did you mean window_s?)")
     if case == "params-wrong-type":
         params.write_text("label:\n  min_samples: many\n", encoding="utf-8")
         return [session, "--params", params], (f"{params}: label.min_samples: expected an "
