@@ -24,6 +24,7 @@ import csv
 import io
 import json
 import math
+import re
 from collections.abc import Sequence
 from datetime import UTC, datetime
 from pathlib import PurePosixPath
@@ -32,9 +33,10 @@ from typing import Any
 import numpy as np
 
 from ofbe_data import __version__
-from ofbe_data.calibration.noise import RW_BOUND_CONFIDENCE, NoiseEstimate
+from ofbe_data.calibration.noise import MIN_CLUSTERS, RW_BOUND_CONFIDENCE, NoiseEstimate
 from ofbe_data.calibration.results import ZERO_G_OFFSET, CalibrationExportError, CalibrationResult
 from ofbe_data.io.gravity import G0
+from ofbe_data.io.recording import TEMPERATURE, Recording
 from ofbe_data.labelling.conventions import imucal_from_matrix
 
 JSON_FORMAT = "ofbe-calibration/1"
@@ -257,8 +259,9 @@ def kalibr_file(r: CalibrationResult, noise: NoiseEstimate, written: datetime,
     lines = [f"# {line}" for line in _header(r, written, "Kalibr IMU noise parameters (imu.yaml)")]
     lines += [
         f"# accelerometer: overlapping Allan deviation of {noise.n_segments} stationary segments "
-        f"({noise.total_s:.1f} s in all, shortest {noise.shortest_s:.1f} s, "
-        f"tau up to {noise.longest_tau_s:.3g} s)",
+        f"({noise.total_s:.1f} s in all, shortest {noise.shortest_s:.1f} s), each tau pooled over the "
+        f"segments holding at least {MIN_CLUSTERS} clusters of it: tau up to {noise.longest_tau_s:.3g} s "
+        f"({noise.longest_tau_segments} segment{'' if noise.longest_tau_segments == 1 else 's'} there)",
         *_kalibr_density_lines(noise, "accelerometer", "m/s^2/sqrt(Hz)"),
         f"accelerometer_noise_density: {yaml_float(max(noise.density))}",
     ]
@@ -331,15 +334,44 @@ def ros_file(r: CalibrationResult, written: datetime, frame_id: str = DEFAULT_FR
     return ("\n".join(lines) + "\n").encode()
 
 
-def ggir_file(r: CalibrationResult, written: datetime, g0: float = G0,
-              convention: str = "unit-sphere") -> bytes:
-    """A ``backup.cal.coef`` CSV for GGIR, one row per raw file of the result.
+GGIR_BACKUP_FILE = "backup.cal.coef.csv"
+"""Name of the one ``backup.cal.coef`` file of a GGIR export run (when ``--out`` is a folder)."""
+GGIR_SAMPLE_RATE_KEY = "sample_rate"
+"""Header key of the sample rate in the rebuilt data files (GGIR's ``rmc.headername.sf``)."""
 
-    GGIR looks a file's coefficients up by its base name (``filename``); every raw file gets a
-    unique one (:func:`ggir_name`; the ``raw_file`` column says which file it stands for), and
-    the rows of one device and power cycle carry the same coefficients. Every numeric cell
-    holds a number (GGIR reads an empty one as NA and fails on it).
+
+class GgirExportError(CalibrationExportError):
+    """The GGIR export would not do what GGIR reads it for: two rows for one data file name, a
+    name GGIR rewrites before matching, or a recording with nothing to write."""
+
+
+def ggir_lookup_name(filename: str) -> str:
+    """The name GGIR compares with a data file's name for a ``filename`` cell of the file.
+
+    GGIR's g.part1 (R/g.part1.R, ``main_part1``, the ``backup.cal.coef`` block) first rewrites
+    every ``filename`` that holds ``meta_`` (its own milestone names,
+    ``meta_<file>.RData``): ``tmp = unlist(strsplit(filename, "meta_"))``; when
+    ``length(tmp) > 1`` the name becomes ``tmp[2]`` cut at the first match of the regular
+    expression ``.RData``. Only then does it look the data file's name up
+    (``which(bcc.data$filename == fnames[i])``).
     """
+    pieces = _r_strsplit(filename, "meta_")
+    if len(pieces) > 1:
+        return _r_strsplit(pieces[1], ".RData")[0] if pieces[1] else ""
+    return filename
+
+
+def _r_strsplit(text: str, pattern: str) -> list[str]:
+    """R's ``strsplit(text, pattern)`` (a regular expression) for one non-empty string: a match
+    at the end adds no empty piece."""
+    pieces = re.split(pattern, text)
+    if len(pieces) > 1 and pieces[-1] == "":
+        pieces.pop()
+    return pieces
+
+
+def _ggir_rows(r: CalibrationResult, written: datetime, g0: float, convention: str) -> list[list[Any]]:
+    """The ``backup.cal.coef`` rows of one result: one per raw file, all with its coefficients."""
     if convention not in GGIR_CONVENTIONS:
         raise ValueError(f"convention: expected one of {', '.join(GGIR_CONVENTIONS)}, found {convention!r}")
     unit_sphere = convention == "unit-sphere"
@@ -352,23 +384,179 @@ def ggir_file(r: CalibrationResult, written: datetime, g0: float = G0,
                  else "meantempcal 0: temperature unknown (the temperature offsets are 0: no effect)")
     qc = (f"ofbe {__version__} export {_utc(written)}: bias_kind {r.bias_kind}, {_kind_words(r)}; "
           f"offset = -b/g0 (g0 = {g0} m/s^2); {sphere}; {r.scale_note}; no temperature model; {temp_note}")
+    temp = repr(float(r.temperature_c)) if r.temperature_c is not None else "0.0"
+    return [[ggir_name(raw), *(repr(float(v)) for v in scale), *(repr(float(v)) for v in offset),
+             "0.0", "0.0", "0.0", temp, "FALSE", qc, r.device,
+             "" if r.power_cycle is None else r.power_cycle, r.bias_kind, raw]
+            for raw in r.raw_files or (r.stem,)]
+
+
+def ggir_table(results: Sequence[CalibrationResult], written: datetime, g0: float = G0,
+               convention: str = "unit-sphere") -> bytes:
+    """The one ``backup.cal.coef`` CSV of an export run: a row per raw file of every result.
+
+    GGIR takes one calibration file per run, ``GGIR(..., backup.cal.coef = "<file>")`` (the
+    ``backup.cal.coef`` parameter of g.part1; R/g.part1.R, ``main_part1``): it reads it whole
+    (``bcc.data = data.table::fread(backup.cal.coef, data.table = FALSE)``; ``read.csv`` in
+    GGIR 2.x), and for each data file takes the first row whose ``filename`` equals the file's
+    base name (``bcc.i = which(bcc.data$filename == fnames[i])``, then ``bcc.i[1]``; ``fnames``
+    are base names, R/datadir2fnames.R), reading ``scale.*``, ``offset.*`` and
+    ``temperature.offset.*`` by column name in file order (``as.numeric``), ``meantempcal``,
+    ``QCmessage`` and ``use.temperature``. Every device and power cycle therefore shares one
+    file, one row per raw file (:func:`ggir_name`; ``raw_file`` says which file it stands for),
+    and every name must be found as written: two rows of one name (GGIR would silently use
+    the first) or a name GGIR rewrites before the look-up (:func:`ggir_lookup_name`) are
+    refused. Every numeric cell holds a number (GGIR reads an empty one as NA and fails on it).
+
+    Raises
+    ------
+    GgirExportError
+        Two rows for one file name, or a name GGIR would rewrite.
+    """
+    rows: list[list[Any]] = []
+    owner: dict[str, str] = {}
+    for r in results:
+        for row in _ggir_rows(r, written, g0, convention):
+            name = row[0]
+            if ggir_lookup_name(name) != name:
+                raise GgirExportError(
+                    f"{row[-1]}: expected a file name GGIR looks up as written, found {name!r}, which "
+                    f"GGIR's g.part1 rewrites to {ggir_lookup_name(name)!r} (it strips 'meta_' names); "
+                    "rename the file")
+            if name in owner:
+                raise GgirExportError(
+                    f"{row[-1]}: expected one backup.cal.coef row per data file name, found {name!r} "
+                    f"for both {owner[name]} and {r.what} (GGIR would use the first row for both)")
+            owner[name] = r.what
+            rows.append(row)
     buf = io.StringIO()
     out = csv.writer(buf, lineterminator="\n")
     out.writerow(GGIR_COLUMNS)
-    temp = repr(float(r.temperature_c)) if r.temperature_c is not None else "0.0"
-    for raw in r.raw_files or (r.stem,):
-        out.writerow([ggir_name(raw), *(repr(float(v)) for v in scale), *(repr(float(v)) for v in offset),
-                      "0.0", "0.0", "0.0", temp, "FALSE", qc, r.device,
-                      "" if r.power_cycle is None else r.power_cycle, r.bias_kind, raw])
+    out.writerows(rows)
     return buf.getvalue().encode()
+
+
+def ggir_file(r: CalibrationResult, written: datetime, g0: float = G0,
+              convention: str = "unit-sphere") -> bytes:
+    """A ``backup.cal.coef`` CSV of one result alone (what ``--store`` files per device and power
+    cycle): :func:`ggir_table` of ``[r]``."""
+    return ggir_table([r], written, g0, convention)
 
 
 def ggir_name(raw_file: str) -> str:
     """The file name GGIR matches a raw file by: its path from the campaign's raw folder with
     ``/`` replaced by ``__`` (``ga-pc001/rec-01/sparkfun-1.csv`` →
-    ``ga-pc001__rec-01__sparkfun-1.csv``), unique where every raw file is ``<device>.csv``; a
-    bare file name stays as it is."""
-    return "__".join(PurePosixPath(raw_file).parts)
+    ``ga-pc001__rec-01__sparkfun-1.csv``), unique where every raw file is ``<device>.csv``, and
+    ending in ``.csv`` (``.csv`` is added to another ending: ``--ggir-data`` writes CSV, and GGIR
+    picks its reader by the ending, R/g.inspectfile.R); a bare file name (a prediction's) stays
+    as it is."""
+    parts = PurePosixPath(raw_file).parts
+    name = "__".join(parts)
+    if len(parts) > 1 and not name.lower().endswith(".csv"):
+        name += ".csv"
+    return name
+
+
+# ----------------------------------------------------------------------------- GGIR data files
+
+
+GGIR_TIME_ANCHOR_AT_ZERO = frozenset({"mscip-csv"})
+"""Formats whose header UTC start is the time of ``t = 0`` (``Time (s)`` relative to
+``Start (UTC)``); in the others it is the time of the first sample."""
+
+
+def ggir_read_settings(with_temperature: bool) -> dict[str, str]:
+    """The ``rmc.*`` (and other) GGIR parameters that read :func:`ggir_data_file`'s files, as R
+    literals.
+
+    GGIR reads a csv that is not an ActiGraph/Axivity export through ``read.myacc.csv``
+    (R/read.myacc.csv.R) once ``rmc.firstrow.acc`` is set (R/g.inspectfile.R: the
+    ``AD_HOC_CSV`` format): the header block is ``fread(nrows = rmc.header.length, skip =
+    rmc.firstrow.header - 1, header = FALSE)``, names in column 1, values in column 2, the
+    sample rate the row named ``rmc.headername.sf``; the data start at line
+    ``rmc.firstrow.acc`` (R/g.readaccfile.R skips that line when it holds column names), the
+    columns picked by ``rmc.col.time``, ``rmc.col.acc``, ``rmc.col.temp``, acceleration in
+    ``rmc.unit.acc`` (g), time as ``rmc.unit.time`` ``"UNIXsec"``. ``rmc.doresample = TRUE``
+    puts the samples on GGIR's uniform grid from their time stamps (dropped samples, clock
+    jitter); ``minimumFileSizeMB = 0`` keeps g.part1 from skipping files under its default
+    2 MB; ``desiredtz`` is required (the time stamps are UTC instants).
+    """
+    settings = {"rmc.firstrow.header": "1", "rmc.header.length": "1",
+                "rmc.headername.sf": f'"{GGIR_SAMPLE_RATE_KEY}"', "rmc.firstrow.acc": "2",
+                "rmc.dec": '"."', "rmc.col.time": "1", "rmc.unit.time": '"UNIXsec"',
+                "rmc.origin": '"1970-01-01"', "rmc.col.acc": "c(2, 3, 4)", "rmc.unit.acc": '"g"'}
+    if with_temperature:
+        settings |= {"rmc.col.temp": "5", "rmc.unit.temp": '"C"'}
+    return settings | {"rmc.doresample": "TRUE", "minimumFileSizeMB": "0", "desiredtz": '"UTC"'}
+
+
+def ggir_sample_rate(rec: Recording) -> float:
+    """The sample rate a rebuilt file states: the header's nominal rate, else the measured one
+    (kept plus missing samples over the span), rounded to a whole Hz within 0.5 % of one and
+    to 1 mHz otherwise."""
+    if rec.nominal_rate_hz is not None and math.isfinite(rec.nominal_rate_hz) and rec.nominal_rate_hz > 0:
+        return float(rec.nominal_rate_hz)
+    fs = rec.fs_hz
+    if not (math.isfinite(fs) and fs > 0):
+        raise GgirExportError(f"{rec.path}: expected at least two samples with increasing times to state a "
+                              f"sample rate, found {rec.n}")
+    whole = round(fs)
+    return float(whole) if whole > 0 and abs(fs / whole - 1.0) <= 0.005 else round(fs, 3)
+
+
+def ggir_data_file(rec: Recording, with_temperature: bool = False, g0: float = G0) -> bytes:
+    """A recording as a clean CSV that GGIR's ``read.myacc.csv`` reads whole
+    (:func:`ggir_read_settings`): the samples ofbe's validating reader kept, nothing else.
+
+    Layout (ASCII, ``\n`` line ends, every line the same number of comma-separated fields, the
+    way GGIR's own tests write a header block, tests/testthat/test_read.myacc.csv.R)::
+
+        sample_rate,150,,            (the header block: name, value, padding)
+        time,x,y,z                   (column names; ``,temperature`` with a temperature)
+        1741944151.100000,0.01171875,-0.01953125,1.01171875
+
+    ``time``: Unix seconds (UTC), 6 decimals: the header's UTC start plus the device clock
+    since it (the start is the first sample's time, or ``t = 0``'s for ``mscip-csv``); without
+    a UTC start, the device clock itself (seconds since 1970-01-01, or the epoch times a
+    generic csv held). ``x, y, z``: the raw (uncalibrated) specific force in g, ``acc / g0``
+    (GGIR applies ``backup.cal.coef`` to these), written with ``repr`` so they read back bit
+    for bit. ``temperature`` (°C) only with ``with_temperature``.
+
+    Raises
+    ------
+    GgirExportError
+        No sample or a non-finite one, or a temperature asked for that the recording does not
+        have (finite).
+    """
+    if rec.n == 0 or not np.all(np.isfinite(rec.acc)):
+        raise GgirExportError(f"{rec.path}: expected finite samples to write for GGIR, found "
+                              f"{'none' if rec.n == 0 else 'a non-finite one'}")
+    fs = ggir_sample_rate(rec)
+    temps = None
+    if with_temperature:
+        temps = rec.extra.get(TEMPERATURE)
+        if temps is None or not np.all(np.isfinite(temps)):
+            raise GgirExportError(f"{rec.path}: expected a finite temperature for every sample, found "
+                                  f"{'none' if temps is None else 'a missing one'}")
+    t = np.asarray(rec.t, dtype=np.float64)
+    if rec.start_utc is not None:
+        start = rec.start_utc if rec.start_utc.tzinfo else rec.start_utc.replace(tzinfo=UTC)
+        anchor = 0.0 if rec.format in GGIR_TIME_ANCHOR_AT_ZERO else float(t[0])
+        times = start.timestamp() + (t - anchor)
+    else:
+        times = t
+    g = np.asarray(rec.acc, dtype=np.float64) / g0
+    columns = ["time", "x", "y", "z"] + (["temperature"] if temps is not None else [])
+    pad = "," * (len(columns) - 2)
+    lines = [f"{GGIR_SAMPLE_RATE_KEY},{fs:.10g}{pad}", ",".join(columns)]
+    if temps is None:
+        lines += [f"{ti:.6f},{x!r},{y!r},{z!r}"
+                  for ti, (x, y, z) in zip(times.tolist(), g.tolist(), strict=True)]
+    else:
+        lines += [f"{ti:.6f},{x!r},{y!r},{z!r},{c!r}"
+                  for ti, (x, y, z), c in zip(times.tolist(), g.tolist(), np.asarray(temps, float).tolist(),
+                                              strict=True)]
+    return ("\n".join(lines) + "\n").encode("ascii")
 
 
 def json_document(r: CalibrationResult, written: datetime) -> dict[str, Any]:

@@ -7,16 +7,19 @@ the toolkit's validating readers (the format from the session's manifest) and ch
 they are the bytes that were labelled.
 
 Noise for Kalibr (:func:`noise_from_segments`): the overlapping Allan deviation of every
-stationary segment of a (device, power cycle), pooled (:func:`ofbe_data.labelling.allan.combine`),
-gives the white-noise density N from the tau^(−1/2) branch, ADEV(tau) = N/√tau, i.e. the
-deviation read at tau = 1 s (σ(1 s) = N, m/s²/√Hz; σ_sample = N·√f_s). A bias random walk K
+stationary segment of a (device, power cycle), pooled tau by tau over the segments that hold
+at least :data:`MIN_CLUSTERS` clusters of it
+(:func:`ofbe_data.labelling.allan.pooled_allan_deviation`: the longest segment sets the longest
+tau, the short poses of a multi-position calibration add to the short tau only), gives the
+white-noise density N from the tau^(−1/2) branch, ADEV(tau) = N/√tau, i.e. the deviation read at
+tau = 1 s (σ(1 s) = N, m/s²/√Hz; σ_sample = N·√f_s). A bias random walk K
 (m/s³/√Hz, ADEV(tau) = K·√(tau/3)) is read only where the curve is seen to turn up: the Allan
 minimum at tau ≥ :data:`RW_MIN_TAU_S` with at least :data:`RW_MIN_TAUS` averaging times beyond it,
-every tau used holding at least :data:`MIN_CLUSTERS` clusters of the shortest segment, and a
-free slope beyond the minimum within :data:`RW_SLOPE` (+1/2 expected). Otherwise only an upper
-bound is known (:func:`random_walk_bound`): the largest K that the Allan curve's upper
-:data:`RW_BOUND_CONFIDENCE` confidence limit allows at any tau, since a random walk alone would
-put ADEV(tau) at K·√(tau/3) or more.
+and a free slope beyond the minimum within :data:`RW_SLOPE` (+1/2 expected). Otherwise only an
+upper bound is known (:func:`random_walk_bound`): the largest K that the Allan curve's upper
+:data:`RW_BOUND_CONFIDENCE` confidence limit allows at any tau (χ² with the degrees of freedom
+of the clusters pooled at that tau), since a random walk alone would put ADEV(tau) at
+K·√(tau/3) or more.
 
 The same analysis runs on a recording's gyroscope columns where it has them
 (:meth:`~ofbe_data.io.recording.Recording.gyro`, rad/s): N in rad/s/√Hz, K in rad/s²/√Hz.
@@ -45,11 +48,12 @@ from ofbe_data.calibration.results import (
 from ofbe_data.io.formats import read_device_file
 from ofbe_data.io.manifest import SessionManifest, load_manifest
 from ofbe_data.io.recording import Recording
-from ofbe_data.labelling.allan import AllanResult, allan_deviation, combine, default_taus, white_noise_level
+from ofbe_data.labelling.allan import AllanResult, pooled_allan_deviation, white_noise_level
 from ofbe_data.labelling.labels import sha256_file
 
 MIN_CLUSTERS = 3
-"""Fewest clusters (segment length / tau) of the shortest segment at every tau analysed."""
+"""Fewest clusters (segment length / tau) a segment must hold at a tau to be pooled there; the
+longest tau analysed is a third of the longest segment."""
 RW_MIN_TAU_S = 2.0
 """The Allan minimum must lie at tau ≥ this many seconds for a random walk to be read beyond it."""
 RW_MIN_TAUS = 3
@@ -95,6 +99,8 @@ class NoiseEstimate:
         Segments pooled, their total and shortest durations, s.
     longest_tau_s
         Longest tau analysed, s.
+    longest_tau_segments
+        Segments long enough to be pooled at the longest tau.
     """
 
     density: tuple[float, float, float]
@@ -108,6 +114,7 @@ class NoiseEstimate:
     total_s: float
     shortest_s: float
     longest_tau_s: float
+    longest_tau_segments: int = 1
 
 
 def _slope(taus: np.ndarray, adev: np.ndarray) -> float:
@@ -139,7 +146,7 @@ def random_walk_level(result: AllanResult, white: np.ndarray
         beyond = np.arange(i + 1, taus.size)
         if beyond.size < RW_MIN_TAUS:
             return None, (f"no +1/2 branch: the Allan deviation still falls at the longest tau analysed "
-                          f"({taus[-1]:.3g} s, at least {MIN_CLUSTERS} clusters of the shortest segment); "
+                          f"({taus[-1]:.3g} s, {MIN_CLUSTERS} clusters of the longest segment); "
                           "recordings several times longer than the Allan minimum are needed")
         if taus[i] < RW_MIN_TAU_S:
             return None, (f"the Allan minimum of axis {axis} lies at tau = {taus[i]:.3g} s, below "
@@ -167,8 +174,11 @@ def random_walk_bound(result: AllanResult, confidence: float = RW_BOUND_CONFIDEN
     ``ADEV(τ) ≥ K·√(τ/3)`` at every τ: ``K ≤ min_τ ADEV_up(τ)·√(3/τ)``. ``ADEV_up`` is the
     one-sided upper confidence limit of the estimate, ``ADEV·√(ν/χ²_ν(1 − confidence))`` with
     ν = ``n_terms``/m equivalent degrees of freedom (about the number of independent
-    clusters; at least 1), so the bound holds for a curve that scattered low. Usually the
-    longest τ gives the bound: it shrinks as 1/√τ with longer recordings.
+    clusters, counted over the segments pooled at that τ: ``n_terms`` sums their second
+    differences, :func:`~ofbe_data.labelling.allan.pooled_allan_deviation`; at least 1), so the
+    bound holds for a curve that scattered low. The bound comes from the τ where the curve's
+    upper limit is lowest relative to √(τ/3): usually a long τ still held by several segments;
+    it shrinks as 1/√τ with longer recordings.
 
     Parameters
     ----------
@@ -215,8 +225,7 @@ def noise_from_segments(segments: Sequence[np.ndarray], fs_hz: float, what: str 
         raise NoiseAnalysisError(f"{what}: expected stationary segments of at least {MIN_SEGMENT_SAMPLES} "
                                  f"samples, found one of {shortest}")
     try:
-        taus = default_taus(shortest, fs_hz, stop_ratio=MIN_CLUSTERS)
-        pooled = combine([allan_deviation(s, fs_hz, taus) for s in segs])
+        pooled = pooled_allan_deviation(segs, fs_hz, min_clusters=MIN_CLUSTERS)
         white = white_noise_level(pooled)
     except ValueError as exc:
         raise NoiseAnalysisError(f"{what}: {exc}") from None
@@ -226,7 +235,8 @@ def noise_from_segments(segments: Sequence[np.ndarray], fs_hz: float, what: str 
         fit_slope=tuple(float(v) for v in white.slope), random_walk=k, random_walk_note=note,
         random_walk_bound=random_walk_bound(pooled),
         fs_hz=float(fs_hz), n_segments=len(segs), total_s=sum(s.shape[0] for s in segs) / fs_hz,
-        shortest_s=shortest / fs_hz, longest_tau_s=float(pooled.taus_s[-1]))
+        shortest_s=shortest / fs_hz, longest_tau_s=float(pooled.taus_s[-1]),
+        longest_tau_segments=int(pooled.n_segments[-1]) if pooled.n_segments is not None else len(segs))
 
 
 class RawFiles:

@@ -14,6 +14,10 @@ This is the convention of the ADXL345 datasheet (290 µg/√Hz ↔ ≈2.9 mg rms
 equals the *two-sided* power spectral density level, the one-sided level being √2·N. A
 rate random walk (slow bias drift) adds a branch of slope +1/2 at long τ.
 
+Segments of unequal length (the poses of a multi-position calibration) are pooled τ by τ by
+:func:`pooled_allan_deviation`: each τ over every segment that holds at least three clusters
+of it, so the longest segment sets the longest τ.
+
 The standard error of a mean of k independent white-noise samples is σ/√k, which is why a
 few thousand samples are needed before the mean settles to a fraction of a mg
 (:func:`samples_for_resolution`).
@@ -34,6 +38,9 @@ STOP_RATIO = 4
 """Default longest averaging time is N/STOP_RATIO samples (Stable32's stop ratio for OADEV)."""
 WHITE_FIT_DECADES = 1.0
 """Default span of the white-noise fit, decades above the shortest τ."""
+MIN_CLUSTERS = 3
+"""Default fewest clusters (segment length / τ) a segment must hold at a τ to enter
+:func:`pooled_allan_deviation` there."""
 
 
 @dataclass(frozen=True)
@@ -49,15 +56,19 @@ class AllanResult:
         1 for an (N,) one).
     n_terms
         (M,) number of second differences summed at each τ (``N + 1 − 2m``; summed over
-        recordings when pooled by :func:`combine`).
+        recordings when pooled by :func:`combine` or :func:`pooled_allan_deviation`).
     fs_hz
         Sampling rate, Hz.
+    n_segments
+        (M,) number of recordings pooled at each τ, where they differ from τ to τ
+        (:func:`pooled_allan_deviation`); None for one recording or :func:`combine`.
     """
 
     taus_s: np.ndarray
     adev: np.ndarray
     n_terms: np.ndarray
     fs_hz: float
+    n_segments: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -228,6 +239,87 @@ def combine(results: Sequence[AllanResult]) -> AllanResult:
     pooled = np.einsum("rm,rmk->mk", weights, avar) / total[:, np.newaxis]
     return AllanResult(taus_s=first.taus_s.copy(), adev=np.sqrt(pooled),
                        n_terms=total.astype(np.int64), fs_hz=first.fs_hz)
+
+
+def pooled_allan_deviation(segments: Sequence[np.ndarray], fs_hz: float, taus_s: np.ndarray | None = None,
+                           min_clusters: int = MIN_CLUSTERS) -> AllanResult:
+    """Overlapping Allan deviation of segments of unequal length, each τ pooled over every
+    segment long enough for it.
+
+    Segment i enters the average at τ = m/f_s only when it holds at least ``min_clusters``
+    clusters of m samples (``n_i ≥ min_clusters·m``); there its Allan variance counts with the
+    weight of its ``n_terms`` (``n_i + 1 − 2m`` second differences), i.e. the overlapping
+    estimator over the second differences of all the segments that hold the τ, and the
+    result's ``n_terms`` is their sum, so a confidence limit with ν = ``n_terms``/m degrees of
+    freedom counts the clusters of exactly the segments pooled. Short segments thus refine the
+    short τ and no longer cut the analysis short: the longest τ is set by the longest segment
+    (:func:`combine`, by contrast, needs every recording at every τ, so the shortest one sets
+    the range).
+
+    Parameters
+    ----------
+    segments
+        (n_i, K) or (n_i,) samples per segment (same K for all, any unit; the deviation has
+        the same unit). Each segment's mean is irrelevant (poses of a multi-position
+        calibration may be pooled).
+    fs_hz
+        Their common sampling rate, Hz.
+    taus_s
+        (M,) wanted averaging times, s, rounded to whole samples. Default: :func:`default_taus`
+        of the longest segment with stop ratio ``min_clusters``. Those no segment holds
+        ``min_clusters`` times are dropped.
+    min_clusters
+        Fewest clusters a segment must hold at a τ to be pooled there (≥ 2).
+
+    Returns
+    -------
+    AllanResult
+        With ``n_segments`` the number of segments pooled at each τ.
+
+    Raises
+    ------
+    ValueError
+        For no segment, a non-finite sample, segments of different widths, a bad rate, or no
+        τ that any segment holds ``min_clusters`` times.
+    """
+    segs = [np.asarray(s, dtype=np.float64) for s in segments]
+    if not segs:
+        raise ValueError("segments: expected at least one segment, found none")
+    if min_clusters < 2:
+        raise ValueError(f"min_clusters: expected an integer ≥ 2, found {min_clusters!r}")
+    segs = [s[:, np.newaxis] if s.ndim == 1 else s for s in segs]
+    widths = {s.shape[1] if s.ndim == 2 else -1 for s in segs}
+    if len(widths) != 1 or -1 in widths:
+        raise ValueError(f"segments: expected (n, K) arrays of one width K, found shapes "
+                         f"{sorted({np.shape(s) for s in segments})}")
+    if not (math.isfinite(fs_hz) and fs_hz > 0.0):
+        raise ValueError(f"fs_hz: expected a positive sampling rate, found {fs_hz!r}")
+    longest = max(s.shape[0] for s in segs)
+    if taus_s is None:
+        wanted_m = np.rint(default_taus(longest, fs_hz, stop_ratio=min_clusters) * fs_hz)
+    else:
+        wanted_m = np.rint(np.asarray(taus_s, dtype=np.float64).ravel() * fs_hz)
+    wanted_m = np.unique(wanted_m[(wanted_m >= 1) & (wanted_m <= longest // min_clusters)]).astype(np.int64)
+    if wanted_m.size == 0:
+        raise ValueError(f"taus_s: expected a τ that the longest segment ({longest} samples) holds "
+                         f"{min_clusters} times, found none")
+    k = next(iter(widths))
+    weighted = np.zeros((wanted_m.size, k))
+    terms = np.zeros(wanted_m.size, dtype=np.int64)
+    count = np.zeros(wanted_m.size, dtype=np.int64)
+    for s in segs:
+        held = wanted_m <= s.shape[0] // min_clusters
+        if s.shape[0] < 4 or not held.any():
+            continue
+        r = allan_deviation(s, fs_hz, wanted_m[held] / float(fs_hz))
+        idx = np.searchsorted(wanted_m, np.rint(r.taus_s * fs_hz).astype(np.int64))
+        weighted[idx] += r.n_terms[:, np.newaxis] * r.adev**2
+        terms[idx] += r.n_terms
+        count[idx] += 1
+    keep = terms > 0
+    return AllanResult(taus_s=wanted_m[keep] / float(fs_hz),
+                       adev=np.sqrt(weighted[keep] / terms[keep, np.newaxis]),
+                       n_terms=terms[keep], fs_hz=float(fs_hz), n_segments=count[keep])
 
 
 def white_noise_level(result: AllanResult, decades: float = WHITE_FIT_DECADES) -> WhiteNoiseFit:

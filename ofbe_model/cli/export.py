@@ -2,14 +2,18 @@
 
 Calibration formats (:mod:`ofbe_data.calibration`), from a labels folder
 (``processed/labels/<campaign>``), one ``<session>.parquet`` or the JSON ``ofbe-predict``
-prints, one file per device and power cycle (per estimate for predictions):
+prints, one file per device and power cycle (per estimate for predictions; ``ggir``: one file
+per run):
 
 - ``imucal``: imucal ``FerrarisCalibrationInfo`` JSON (gyroscope identity/zero);
 - ``kalibr``: Kalibr ``imu.yaml`` noise parameters from the Allan deviation of the labelled
   stationary segments (needs ``--raw``, the campaign's raw folder); the gyroscope's from the
   recordings' gyroscope columns or ``--gyro-noise-density``/``--gyro-random-walk``;
 - ``ros``: YAML with the bias to subtract and ``linear_acceleration_covariance``;
-- ``ggir``: GGIR ``backup.cal.coef`` CSV (offsets in g, GGIR's sign);
+- ``ggir``: GGIR's ``backup.cal.coef`` CSV (offsets in g, GGIR's sign): one file per run, a row
+  per raw file of every device and power cycle (GGIR takes one such file); ``--ggir-data``
+  also rebuilds the raw files as clean CSV that GGIR's csv reader reads whole, with the
+  ``rmc.*`` settings in ``ggir-data.README.txt``;
 - ``json``: ofbe's own ``ofbe-calibration/1``.
 
 One result: ``--out`` is the file (or, an existing folder, the folder it goes in); several:
@@ -29,7 +33,6 @@ Exit status: 0 written, 1 bad input data, 2 usage (``ofbe_data.core.cli``).
 from __future__ import annotations
 
 import argparse
-import hashlib
 import os
 import re
 import sys
@@ -41,13 +44,15 @@ from pathlib import Path
 
 import numpy as np
 
+from ofbe_data import __version__
 from ofbe_data.calibration import formats as fmt
 from ofbe_data.calibration.noise import RawFiles, attach_raw_times, gyro_noise_of, noise_of
-from ofbe_data.calibration.results import CalibrationResult, CalibrationSourceError, Collected, load_results
+from ofbe_data.calibration.results import CalibrationResult, Collected, Segment, load_results
 from ofbe_data.calibration.store import CalibrationStoreError, store_path
 from ofbe_data.core.atomic import atomic_directory, write_bytes_atomic
 from ofbe_data.core.cli import EXIT_DATA, EXIT_OK, EXIT_USAGE, command, fail, io_failure
 from ofbe_data.core.errors import OfbeError, OutputExistsError
+from ofbe_data.io.recording import TEMPERATURE
 
 PROG = "ofbe-export"
 FILE_SUFFIXES = frozenset({".json", ".yaml", ".yml", ".csv", ".h", ".tflite"})
@@ -71,6 +76,8 @@ class ExportFile:
     device, when, store_format
         Where ``--store`` files it (``store_format`` a key of
         :data:`ofbe_data.calibration.formats.FORMAT_EXTENSIONS`); None: not filed.
+    out
+        Whether it goes to ``--out`` (False: a file for ``--store`` only).
     """
 
     name: str
@@ -78,6 +85,7 @@ class ExportFile:
     device: str | None = None
     when: datetime | None = None
     store_format: str | None = None
+    out: bool = True
 
 
 @dataclass(frozen=True)
@@ -154,42 +162,128 @@ def _ros(args: argparse.Namespace) -> list[ExportFile]:
 
 
 GGIR_DATA = "ggir-data"
-"""Folder of ``--out`` that ``ggir --ggir-data`` copies the raw files into, under GGIR's names."""
+"""Folder of ``--out`` that ``ggir --ggir-data`` writes the rebuilt data files into, under GGIR's names."""
+GGIR_DATA_README = "ggir-data.README.txt"
+"""Notes beside ``ggir-data/``: the layout of the rebuilt files and the ``rmc.*`` settings to pass."""
 
 
 def _ggir(args: argparse.Namespace) -> list[ExportFile]:
+    """One ``backup.cal.coef`` for the whole run (GGIR takes one file: the ``backup.cal.coef``
+    parameter of g.part1, R/g.part1.R), per-device copies for ``--store``, and with
+    ``--ggir-data`` the raw files rebuilt for GGIR's csv reader."""
     if args.ggir_data and args.raw is None:
-        raise ExportUsageError("--ggir-data needs --raw DIR: the campaign's raw folder to copy the files "
+        raise ExportUsageError("--ggir-data needs --raw DIR: the campaign's raw folder to rebuild the files "
                                "from")
-    collected, _ = _collect(args)
+    collected, raw = _collect(args)
     if args.ggir_data and collected.kind != "labels":
-        raise ExportUsageError(f"{args.source}: --ggir-data copies the raw files of labels; ofbe-predict's "
+        raise ExportUsageError(f"{args.source}: --ggir-data rebuilds the raw files of labels; ofbe-predict's "
                                "JSON names files GGIR can read under their own names")
     now = written_time()
-    files = _calibration_files(collected, "ggir",
-                               lambda r: fmt.ggir_file(r, now, convention=args.g_convention))
-    renamed = sorted({raw for r in collected.results for raw in r.raw_files if fmt.ggir_name(raw) != raw})
+    table = fmt.ggir_table(collected.results, now, convention=args.g_convention)
+    files = [ExportFile(fmt.GGIR_BACKUP_FILE, table)]
+    if args.store is not None:  # a store is per device: each device and power cycle's own rows
+        files += [ExportFile(f"{r.stem}.{fmt.FORMAT_EXTENSIONS['ggir']}",
+                             fmt.ggir_file(r, now, convention=args.g_convention), r.device, r.time_utc,
+                             "ggir", out=False)
+                  for r in collected.results]
+    renamed = sorted({raw_file for r in collected.results for raw_file in r.raw_files
+                      if fmt.ggir_name(raw_file) != raw_file})
     if args.ggir_data:
-        hashes = {f"{s.session}/{Path(s.raw_file).as_posix()}": s.raw_sha256
-                  for r in collected.results for s in r.segments}
-        for raw in renamed:
-            path = args.raw / raw
-            if not path.is_file():
-                raise CalibrationSourceError(f"{path}: expected the labelled raw file, found no such file")
-            data = path.read_bytes()
-            if hashes.get(raw) and hashlib.sha256(data).hexdigest() != hashes[raw]:
-                raise CalibrationSourceError(f"{path}: expected the bytes that were labelled, found a "
-                                             "different file")
-            files.append(ExportFile(f"{GGIR_DATA}/{fmt.ggir_name(raw)}", data))
-        print(f"{PROG}: ggir: {len(renamed)} raw files copied into {GGIR_DATA}/ under the names GGIR matches "
-              "(the filename column; raw_file says which file each is): point GGIR's datadir there",
-              file=sys.stderr)
+        assert raw is not None
+        data = _ggir_data_files(collected, raw, now)
+        files += data
+        print(f"{PROG}: ggir: {len(data) - 1} raw files rebuilt into "
+              f"{GGIR_DATA}/ as clean CSV under the names GGIR matches (the filename column; raw_file says "
+              f"which file each is): point GGIR's datadir there with the rmc.* settings of "
+              f"{GGIR_DATA_README}", file=sys.stderr)
     elif renamed:
         print(f"{PROG}: ggir: GGIR matches a row by the data file's base name: the filename column names "
               f"each of the {len(renamed)} raw files uniquely (raw_file says which file it is); give GGIR "
-              "the files under those names, or pass --ggir-data --raw DIR to have them copied",
+              "the files under those names, or pass --ggir-data --raw DIR to have them rebuilt for GGIR",
               file=sys.stderr)
     return files
+
+
+def _ggir_data_files(collected: Collected, raw: RawFiles, now: datetime) -> list[ExportFile]:
+    """Every raw file of the labels, read by the validating readers (their SHA-256 checked
+    against the labels) and written back as the clean CSV GGIR's ``read.myacc.csv`` reads whole
+    (:func:`ofbe_data.calibration.formats.ggir_data_file`), plus the notes on how to read them.
+
+    A temperature column is written only when every file has a finite temperature for every
+    sample: GGIR takes one ``rmc.col.temp`` for the whole run."""
+    wanted: dict[str, tuple[Segment, str]] = {}
+    for r in collected.results:
+        for seg in r.segments:
+            wanted.setdefault(f"{seg.session}/{Path(seg.raw_file).as_posix()}", (seg, r.device))
+    recordings = {name: raw.recording(seg, device) for name, (seg, device) in sorted(wanted.items())}
+    with_temperature = bool(recordings) and all(
+        TEMPERATURE in rec.extra and bool(np.all(np.isfinite(rec.extra[TEMPERATURE])))
+        for rec in recordings.values())
+    files: list[ExportFile] = []
+    listing: list[tuple[str, str, float, int]] = []
+    for name, rec in recordings.items():
+        files.append(ExportFile(f"{GGIR_DATA}/{fmt.ggir_name(name)}",
+                                fmt.ggir_data_file(rec, with_temperature)))
+        listing.append((fmt.ggir_name(name), name, fmt.ggir_sample_rate(rec), rec.n))
+    files.append(ExportFile(GGIR_DATA_README, _ggir_data_readme(listing, with_temperature, now)))
+    return files
+
+
+def _ggir_data_readme(files: Sequence[tuple[str, str, float, int]], with_temperature: bool,
+                     written: datetime) -> bytes:
+    """The notes beside ``ggir-data/`` (:data:`GGIR_DATA_README`): what the files are and the GGIR
+    call that reads them (:func:`ofbe_data.calibration.formats.ggir_read_settings`).
+
+    Parameters
+    ----------
+    files
+        (GGIR name, raw file, sample rate Hz, samples) of each rebuilt file.
+    with_temperature
+        Whether the files carry a temperature column.
+    written
+        When the export was made.
+    """
+    settings = fmt.ggir_read_settings(with_temperature)
+    columns = ["time", "x", "y", "z"] + (["temperature"] if with_temperature else [])
+    args = ",\n     ".join(f"{k} = {v}" for k, v in settings.items())
+    lines = [
+        f"{GGIR_DATA}/: written by ofbe {__version__} at {written.astimezone(UTC):%Y-%m-%dT%H:%M:%SZ}",
+        "",
+        "Each file is a raw recording rebuilt from the samples ofbe's validating reader kept (garbled,",
+        "truncated and non-numeric lines, boot noise and bytes that are not text are left out, never",
+        "guessed), as a clean CSV that GGIR's own csv reader (read.myacc.csv) reads whole, under the",
+        f"name in the filename column of {fmt.GGIR_BACKUP_FILE} (its raw_file column names the raw file).",
+        "",
+        "Layout: line 1 the header block 'sample_rate,<Hz>' (padded to the width of the data); line 2",
+        f"the column names {','.join(columns)}; then one sample per line:",
+        "  time   Unix seconds (UTC): the recording's header UTC start plus the device clock since it",
+        "         (without a UTC start in the raw file: the device clock, i.e. from 1970-01-01)",
+        "  x,y,z  raw (uncalibrated) specific force, g (= m/s^2 / 9.80665): GGIR applies the",
+        f"         coefficients of {fmt.GGIR_BACKUP_FILE} to these",
+        *(["  temperature  degrees C"] if with_temperature else []),
+        "",
+        "Give GGIR these settings (read.myacc.csv's rmc.* parameters; GGIR >= 3.0 names, as in",
+        "R/read.myacc.csv.R, R/g.inspectfile.R and R/g.readaccfile.R of wadpac/GGIR):",
+        "",
+        "  library(GGIR)",
+        "  GGIR(datadir = \"ggir-data\", outputdir = \"<an output folder outside ggir-data>\",",
+        f"     backup.cal.coef = \"{fmt.GGIR_BACKUP_FILE}\",",
+        f"     {args})",
+        "",
+        "rmc.firstrow.acc = 2 points at the column-name line (GGIR skips it); rmc.doresample = TRUE",
+        "puts the samples on a uniform grid at the header's sample rate from their time stamps",
+        "(dropped samples, clock jitter); minimumFileSizeMB = 0 because g.part1 skips files under",
+        "2 MB by default; desiredtz is the time zone GGIR cuts days in (the stamps are UTC instants).",
+        "",
+        "GGIR only analyses (g.part1 metrics) a file whose first block holds at least",
+        "2 * windowsizes[3] * sample_rate + 1 samples (R/g.readaccfile.R marks it 'filetooshort'",
+        "otherwise), and windowsizes[2] must be whole minutes: recordings shorter than about two",
+        "minutes are read whole but not analysed, whatever the settings.",
+        "",
+        "Files (GGIR name, raw file, sample rate, samples):",
+        *(f"  {name}  {raw}  {fs:g} Hz  {n}" for name, raw, fs, n in files),
+    ]
+    return ("\n".join(lines) + "\n").encode()
 
 
 def _json(args: argparse.Namespace) -> list[ExportFile]:
@@ -205,8 +299,9 @@ def _training_windows(args: argparse.Namespace) -> tuple[np.ndarray, str]:
     """The windows a model was trained on, (N, T, 3) m/s², and a description of them; without
     ``--dataset``, the dataset the model card beside SOURCE names (:func:`card_dataset`)."""
     what = ""
+    selected = None
     if args.dataset is None:
-        from ofbe_model.deploy.final import ModelCardError, card_dataset
+        from ofbe_model.deploy.final import ModelCardError, card_dataset, card_selected_devices
 
         try:
             args.dataset, warning = card_dataset(args.source)
@@ -216,11 +311,15 @@ def _training_windows(args: argparse.Namespace) -> tuple[np.ndarray, str]:
         if warning:
             print(f"{PROG}: warning: {warning}", file=sys.stderr)
         what = " (the model card's training data)"
+        selected = card_selected_devices(args.source) if args.device is None else None
     from ofbe_data import load_dataset
 
     data = load_dataset(args.dataset)
     keep = np.ones(len(data.meta), dtype=bool)
     what = f"{args.dataset}{what}"
+    if selected is not None:  # a per-device model: its own device's windows only, as the card says
+        keep &= data.meta["device"].isin(selected).to_numpy()
+        what += f", device {', '.join(selected)}"
     if args.device is not None:
         keep &= (data.meta["device"] == args.device).to_numpy()
         what += f", device {args.device}"
@@ -265,7 +364,7 @@ FORMATS: dict[str, Format] = {
     "kalibr": Format(_kalibr, "Kalibr imu.yaml: accelerometer and gyroscope noise density and random walk "
                               "from the Allan deviation (gyroscope from its columns or flags); needs --raw"),
     "ros": Format(_ros, "YAML: bias to subtract (m/s²) and linear_acceleration_covariance"),
-    "ggir": Format(_ggir, "GGIR backup.cal.coef CSV: scale.*, offset.* (g, GGIR's sign)"),
+    "ggir": Format(_ggir, "GGIR backup.cal.coef CSV, one per run: scale.*, offset.* (g, GGIR's sign)"),
     "json": Format(_json, "ofbe-calibration/1 JSON: bias, std, kind, method, source, time, version"),
     "tflite": Format(_tflite, "OFBENet (SOURCE: a .keras) as float32 and int8 TensorFlow Lite with a JSON "
                               "sidecar of the scaling; --dataset (default: the model card's)"),
@@ -334,7 +433,9 @@ def write_outputs(files: Sequence[ExportFile], out: Path | None, store: Path | N
     """
     if not files:
         raise CalibrationStoreError("nothing to export")
-    out_targets, new_folder = ([], False) if out is None else _out_targets(files, out, force, out_is_folder)
+    to_out = [f for f in files if f.out]
+    out_targets, new_folder = (([], False) if out is None or not to_out
+                               else _out_targets(to_out, out, force, out_is_folder))
     store_targets = _store_targets(files, store, force) if store is not None else []
     written = []
     if new_folder and out is not None:
@@ -396,8 +497,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="ggir: GGIR's unit sphere (default: resting readings of norm 1 g) or ofbe's local "
                         "convention (norm g_local/g0)")
     p.add_argument("--ggir-data", action="store_true",
-                   help="ggir: also copy the raw files (from --raw) into OUT/ggir-data/ under the unique "
-                        "names of the filename column, the names GGIR matches")
+                   help="ggir: also rebuild the raw files (from --raw) as clean CSV that GGIR's csv reader "
+                        "reads whole, in OUT/ggir-data/ under the names of the filename column, with the "
+                        "rmc.* settings in OUT/ggir-data.README.txt")
     p.add_argument("--rostopic", default=fmt.DEFAULT_ROSTOPIC, help="kalibr: rostopic (default %(default)s)")
     p.add_argument("--gyro-noise-density", type=_positive, metavar="RAD_S_SQRT_HZ",
                    help="kalibr: gyroscope white-noise density, rad/s/sqrt(Hz) (datasheet); default: measured"
@@ -434,8 +536,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         return io_failure(PROG, exc, args.out, "the export could not be written")
     for path in written:
         print(path)
-    print(f"{PROG}: {args.format}: {len(files)} result file{'s' if len(files) != 1 else ''} written",
-          file=sys.stderr)
+    to_out = sum(f.out for f in files) if args.out is not None else 0
+    filed = (sum(f.device is not None and f.store_format is not None for f in files)
+             if args.store is not None else 0)
+    count = to_out + filed
+    print(f"{PROG}: {args.format}: {count} result file{'s' if count != 1 else ''} written", file=sys.stderr)
     return EXIT_OK
 
 

@@ -252,6 +252,18 @@ def card_dataset(model: str | Path, cwd: str | Path | None = None) -> tuple[Path
     return found, warning
 
 
+def card_selected_devices(model: str | Path) -> list[str] | None:
+    """The devices of its dataset a deployed model was trained on, from the card beside it
+    (``training_data.selected_devices``); None when it saw every device or has no such card."""
+    try:
+        card = json.loads((Path(model).parent / CARD_JSON).read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        return None
+    data = card.get("training_data") if isinstance(card, dict) else None
+    chosen = data.get("selected_devices") if isinstance(data, dict) else None
+    return [str(d) for d in chosen] if isinstance(chosen, list) and chosen else None
+
+
 def dataset_hash(folder: str | Path) -> str:
     """SHA-256 of a dataset's SHA256SUMS file (which lists every file's own hash)."""
     return hashlib.sha256((Path(folder) / "SHA256SUMS").read_bytes()).hexdigest()

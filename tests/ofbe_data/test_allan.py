@@ -8,6 +8,7 @@ from ofbe_data.labelling.allan import (
     allan_deviation,
     combine,
     default_taus,
+    pooled_allan_deviation,
     samples_for_resolution,
     white_noise_level,
 )
@@ -114,6 +115,53 @@ def test_combine_rejects_unequal_taus():
     c = AllanResult(taus_s=a.taus_s, adev=a.adev, n_terms=a.n_terms, fs_hz=100.0)
     with pytest.raises(ValueError, match="fs_hz"):
         combine([a, c])
+
+
+def test_pooled_equals_combine_when_every_segment_holds_every_tau():
+    segs = [_white(10, 6000), _white(11, 6600), _white(12, 7200)]
+    taus = default_taus(6000, FS, stop_ratio=3)
+    pooled = pooled_allan_deviation(segs, FS, taus)
+    reference = combine([allan_deviation(s, FS, taus) for s in segs])
+    np.testing.assert_array_equal(pooled.taus_s, reference.taus_s)
+    np.testing.assert_allclose(pooled.adev, reference.adev, rtol=1e-12)
+    np.testing.assert_array_equal(pooled.n_terms, reference.n_terms)
+    np.testing.assert_array_equal(pooled.n_segments, 3)
+
+
+def test_pooled_takes_each_segment_where_it_holds_three_clusters():
+    """Issue 33: segments of 300, 1200 and 6000 samples: the longest τ is a third of the longest
+    segment (not of the shortest), and each τ pools exactly the segments holding 3 clusters of it,
+    weighted by their second differences, with n_terms counted over those segments only."""
+    segs = [_white(13, 300), _white(14, 1200), _white(15, 6000)]
+    pooled = pooled_allan_deviation(segs, FS)
+    m = np.rint(pooled.taus_s * FS).astype(int)
+    assert m[0] == 1 and m[-1] == 2000  # 6000 // 3, not 300 // 3
+    expected_count = sum((m <= n // 3).astype(int) for n in (300, 1200, 6000))
+    np.testing.assert_array_equal(pooled.n_segments, expected_count)
+    assert set(pooled.n_segments.tolist()) == {1, 2, 3}
+    for i in (0, int(np.argmax(pooled.n_segments == 2)), m.size - 1):
+        held = [s for s in segs if s.shape[0] >= 3 * m[i]]
+        parts = [allan_deviation(s, FS, [pooled.taus_s[i]]) for s in held]
+        terms = sum(int(p.n_terms[0]) for p in parts)
+        avar = sum(p.n_terms[0] * p.adev[0] ** 2 for p in parts) / terms
+        np.testing.assert_allclose(pooled.adev[i], np.sqrt(avar), rtol=1e-12)
+        assert pooled.n_terms[i] == terms == sum(s.shape[0] + 1 - 2 * m[i] for s in held)
+    # white noise: every τ, whichever segments hold it, is on the −1/2 line
+    ratio = pooled.adev * np.sqrt(pooled.taus_s * FS)[:, None] / SIGMA
+    np.testing.assert_allclose(ratio[pooled.taus_s <= 0.5], 1.0, atol=0.1)
+
+
+def test_pooled_one_dimensional_and_bad_input():
+    r = pooled_allan_deviation([_white(16, 900)[:, 0], _white(17, 90)[:, 0]], FS, min_clusters=4)
+    assert r.adev.shape[1] == 1 and int(round(r.taus_s[-1] * FS)) == 225
+    with pytest.raises(ValueError, match="at least one segment"):
+        pooled_allan_deviation([], FS)
+    with pytest.raises(ValueError, match="one width"):
+        pooled_allan_deviation([_white(18, 100), _white(19, 100)[:, :2]], FS)
+    with pytest.raises(ValueError, match="min_clusters"):
+        pooled_allan_deviation([_white(20, 100)], FS, min_clusters=1)
+    with pytest.raises(ValueError, match="taus_s"):
+        pooled_allan_deviation([_white(21, 100)], FS, taus_s=[10.0])
 
 
 def test_samples_for_resolution():

@@ -56,6 +56,7 @@ from ofbe_data.labelling.labels import LabelParams
 from ofbe_data.labelling.store import read_labels
 from ofbe_data.simulator import load_config, simulate_campaign
 from tests.conftest import EXAMPLES, kalibr_imu_parameters
+from tests.ofbe_data.ggir_replica import GgirReadError, backup_cal_coef, read_myacc_csv
 
 WRITTEN = datetime(2025, 6, 1, 12, 0, 0, tzinfo=UTC)
 #: Every key of Kalibr's IMU yaml (https://github.com/ethz-asl/kalibr/wiki/yaml-formats).
@@ -216,26 +217,11 @@ def test_imucal_corrects_as_ofbe_does(tmp_path, campaign, scaled_labels, scaled)
 
 
 def _ggir_backup_coefficients(data: bytes, filename: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
-    """What GGIR's g.part1 (R/g.part1.R, main_part1, the ``backup.cal.coef`` block) takes from the
-    file for one data file: ``bcc.data = read.csv(...)``; the row whose ``filename`` equals the
-    file's name; ``C$scale``, ``C$offset``, ``C$tempoffset`` as ``as.numeric`` of the columns named
-    ``scale.x|y|z``, ``offset.x|y|z``, ``temperature.offset.x|y|z`` in file order; and
-    ``meantempcal`` (read by name in GGIR versions that keep it with the coefficients)."""
-    bcc = pd.read_csv(io.BytesIO(data))
-    rows = bcc.index[bcc["filename"].astype(str) == filename]
-    assert len(rows) >= 1, f"GGIR finds no row for {filename}"
-    row = bcc.loc[rows[0]]
-    cols = list(bcc.columns)
-
-    def named(names: tuple[str, ...]) -> np.ndarray:
-        values = pd.to_numeric(row[[c for c in cols if c in names]], errors="coerce").to_numpy(float)
-        assert values.shape == (3,) and np.all(np.isfinite(values)), names  # NA breaks GGIR
-        return values
-
-    meantempcal = float(pd.to_numeric(row["meantempcal"], errors="coerce"))
-    assert np.isfinite(meantempcal)  # GGIR: "the condition has length > 1" on an NA here
-    return (named(("scale.x", "scale.y", "scale.z")), named(("offset.x", "offset.y", "offset.z")),
-            named(("temperature.offset.x", "temperature.offset.y", "temperature.offset.z")), meantempcal)
+    """What GGIR's g.part1 takes from the file for one data file (``scale``, ``offset``,
+    ``tempoffset``, ``meantempcal``): :func:`tests.ofbe_data.ggir_replica.backup_cal_coef`, the
+    ``backup.cal.coef`` block of R/g.part1.R replicated line by line."""
+    row = backup_cal_coef(data, filename)
+    return row.scale, row.offset, row.tempoffset, row.meantempcal
 
 
 @pytest.mark.parametrize("scaled", [False, True])
@@ -306,6 +292,134 @@ def test_ggir_gives_every_raw_file_its_own_row(campaign, apparent_labels) -> Non
     names = [n for x in ga for n in pd.read_csv(io.BytesIO(fmt.ggir_file(x, WRITTEN)))["filename"]]
     assert len(names) == len(set(names)) == 6  # 2 boards x 3 power cycles, one file each
     assert fmt.ggir_name("walk.csv") == "walk.csv"  # a prediction's file keeps its own name
+
+
+def test_ggir_table_is_one_file_for_every_device_and_power_cycle(campaign) -> None:
+    """Issue 33: GGIR takes ONE calibration file per run (g.part1's ``backup.cal.coef``): the
+    table holds a row per raw file of every device and power cycle, and GGIR's own look-up
+    (replicated) finds each data file's row with its own result's coefficients."""
+    results = (results_from_labels(campaign / "labels" / "ga").results
+               + results_from_labels(campaign / "labels" / "mp").results)
+    data = fmt.ggir_table(results, WRITTEN)
+    table = pd.read_csv(io.BytesIO(data))
+    assert tuple(table.columns) == fmt.GGIR_COLUMNS
+    assert len(table) == sum(len(r.raw_files) for r in results) == 6 + 12
+    assert set(zip(table["device"], table["power_cycle"], strict=True)) == {
+        (r.device, r.power_cycle) for r in results}
+    assert table["filename"].is_unique and table.notna().all().all()
+    for r in results:
+        scale, offset = fmt.ggir_coefficients(r.bias, r.matrix, G0, r.g_local)
+        for raw_file in r.raw_files:
+            row = backup_cal_coef(data, fmt.ggir_name(raw_file))
+            np.testing.assert_array_equal(row.offset, offset)
+            np.testing.assert_array_equal(row.scale, scale)
+            assert not row.use_temp and row.meantempcal == 0.0
+            assert f"bias_kind {r.bias_kind}" in row.qc_message
+    # one result alone (what --store files per device and power cycle) holds the same rows
+    single = pd.read_csv(io.BytesIO(fmt.ggir_file(results[-1], WRITTEN)))
+    pd.testing.assert_frame_equal(single, table.iloc[-len(single):].reset_index(drop=True))
+
+
+def test_ggir_table_refuses_names_ggir_would_not_find(campaign) -> None:
+    """GGIR uses the first row of a name (``bcc.i[1]``) and rewrites names holding ``meta_``
+    before its look-up: both would silently apply wrong or no coefficients, so both are refused."""
+    r = results_from_labels(campaign / "labels" / "ga").results[0]
+    with pytest.raises(fmt.GgirExportError, match="one backup.cal.coef row per data file name"):
+        fmt.ggir_table([r, replace(r, device="other")], WRITTEN)
+    assert fmt.ggir_lookup_name("s1__meta_rec__x.csv") == "rec__x.csv"
+    assert fmt.ggir_lookup_name("meta_walk.csv.RData") == "walk.csv"
+    with pytest.raises(fmt.GgirExportError, match="rewrites to 'rec__x.csv'"):
+        fmt.ggir_table([replace(r, raw_files=("s1/meta_rec/x.csv",))], WRITTEN)
+    # the replica of g.part1 agrees: such a row is found under the rewritten name only
+    name = fmt.ggir_name(r.raw_files[0]).encode()
+    data = fmt.ggir_table([r], WRITTEN).replace(name, b"s1__meta_rec__x.csv")
+    with pytest.raises(GgirReadError, match="no backup.cal.coef row"):
+        backup_cal_coef(data, "s1__meta_rec__x.csv")
+    assert backup_cal_coef(data, "rec__x.csv").scale.shape == (3,)
+    assert fmt.ggir_name("s/rec-01/memsense.bin") == "s__rec-01__memsense.bin.csv"  # GGIR reads by ending
+
+
+HOSTILE_LOGGER = (
+    b"ets Jun  8 2016 00:22:57\r\nrst:0x1 (POWERON_RESET),boot:0x13 (SPI_FAST_FLASH_BOOT)\n"
+    b"# ofbe-logger fw=1.4.2 board=sparkfun-thing-plus-esp32 chip=ADXL345 device=sparkfun-1\n"
+    b"# odr_hz=150 range_g=16 full_res=1 lsb_per_g=256\n"
+    b"# host_start_utc=2025-03-14T10:22:31.100Z\nt_us,ax,ay,az\n")
+"""Preamble of an ofbe-logger file: boot noise (one line with CR LF), header, column names."""
+
+
+def _hostile_logger(path: Path, n: int = 600, seed: int = 0) -> None:
+    """An ofbe-logger file of ``n`` samples at 150 Hz with what the serial link does to real
+    files: a truncated line, a 0xFF byte, a non-numeric field, and two dropped samples."""
+    rng = np.random.default_rng(seed)
+    t_us = 4093012 + np.round(np.arange(n) * 1e6 / 150).astype(np.int64)
+    counts = np.round([3, -5, 259] + 1.4 * rng.standard_normal((n, 3))).astype(int)
+    lines = [f"{t},{x},{y},{z}".encode() for t, (x, y, z) in zip(t_us, counts, strict=True)]
+    lines[100] = lines[100][:9]  # truncated
+    lines[200] = lines[200][:3] + b"\xff" + lines[200][3:]  # a byte that is not text
+    lines[300] = lines[300].replace(b",", b",x", 1)  # non-numeric field
+    del lines[400:402]  # dropped by the link
+    path.write_bytes(HOSTILE_LOGGER + b"\n".join(lines) + b"\n")
+
+
+def test_ggir_data_file_is_read_whole_by_ggir_and_round_trips(tmp_path) -> None:
+    """Issue 33: GGIR's csv reader stops at the first garbled line or fails on a 0xFF byte of a
+    raw logger file. The rebuilt file holds exactly the samples ofbe's reader kept; GGIR's
+    reading (replicated: header block, column-name line, fread's field counts and numeric
+    columns) takes every line, and gives back acc/g0 bit for bit and the UTC times."""
+    from ofbe_data.io.formats.ofbe_logger import read_ofbe_logger
+
+    path = tmp_path / "sparkfun-1.csv"
+    _hostile_logger(path)
+    rec = read_ofbe_logger(path)
+    assert len(rec.diagnostics.skipped) == 3 and rec.n == 600 - 2 - 3
+    assert rec.diagnostics.missing_samples == 2 + 3  # dropped and skipped samples leave gaps
+    body = path.read_bytes().split(b"\n")[6:-1]  # the raw data lines as GGIR would see them
+    with pytest.raises(UnicodeDecodeError):
+        b"\n".join(body).decode("ascii")
+    assert len({line.count(b",") for line in body}) > 1  # fread would stop early
+    data = fmt.ggir_data_file(rec)
+    assert data.isascii() and b"\r" not in data
+    lines = data.decode().splitlines()
+    assert lines[:2] == ["sample_rate,150,,", "time,x,y,z"]
+    assert {line.count(",") for line in lines} == {3} and len(lines) == 2 + rec.n
+    sf, frame = read_myacc_csv(data, fmt.ggir_read_settings(with_temperature=False), str(path))
+    assert sf == 150.0 and list(frame.columns) == ["time", "x", "y", "z"] and len(frame) == rec.n
+    np.testing.assert_array_equal(frame[["x", "y", "z"]].to_numpy(), rec.acc / G0)
+    start = datetime(2025, 3, 14, 10, 22, 31, 100000, tzinfo=UTC).timestamp()
+    np.testing.assert_allclose(frame["time"].to_numpy() - start, rec.t - rec.t[0], rtol=0, atol=1e-6)
+    assert np.all(np.diff(frame["time"].to_numpy()) > 0)
+
+
+def test_ggir_data_file_temperature_rates_and_time_origins(tmp_path) -> None:
+    """A temperature column when asked (and only when every sample has one); the header's UTC
+    start is ``t = 0`` for mscip-csv and the first sample elsewhere; without a start the device
+    clock is written; without a nominal rate the measured one."""
+    from ofbe_data.io.recording import TEMPERATURE, ReadDiagnostics, Recording
+
+    n = 5
+    t = 2.0 + np.arange(n) / 200.0
+    start = datetime(2025, 3, 14, 10, 22, 31, 512000, tzinfo=UTC)
+    rec = Recording(tmp_path / "m.csv", "mscip-csv", t, np.full((n, 3), 9.80665 / 3), np.zeros(n, bool),
+                    np.arange(n), start, 200.0, {}, ReadDiagnostics(tmp_path / "m.csv", 6, n, n),
+                    {TEMPERATURE: np.array([31.2, 31.2, 31.25, 31.3, 31.3])})
+    data = fmt.ggir_data_file(rec, with_temperature=True)
+    assert data.decode().splitlines()[:2] == ["sample_rate,200,,,", "time,x,y,z,temperature"]
+    sf, frame = read_myacc_csv(data, fmt.ggir_read_settings(with_temperature=True))
+    assert sf == 200.0
+    np.testing.assert_array_equal(frame["temperature"], rec.extra[TEMPERATURE])
+    np.testing.assert_allclose(frame["time"] - start.timestamp(), t, atol=1e-6)  # Time (s) from Start
+    logger = fmt.ggir_data_file(replace(rec, format="ofbe-logger"))
+    _, frame = read_myacc_csv(logger, fmt.ggir_read_settings(with_temperature=False))
+    np.testing.assert_allclose(frame["time"] - start.timestamp(), t - t[0], atol=1e-6)  # first sample
+    _, frame = read_myacc_csv(fmt.ggir_data_file(replace(rec, start_utc=None)), fmt.ggir_read_settings(False))
+    np.testing.assert_allclose(frame["time"], t, atol=1e-6)
+    assert fmt.ggir_sample_rate(replace(rec, nominal_rate_hz=None)) == 200.0
+    with pytest.raises(fmt.GgirExportError, match="m.csv: expected a finite temperature"):
+        fmt.ggir_data_file(replace(rec, extra={TEMPERATURE: np.array([31.2, np.nan, 31.0, 31.0, 31.0])}),
+                           with_temperature=True)
+    settings = fmt.ggir_read_settings(with_temperature=True)
+    assert settings["rmc.col.temp"] == "5" and settings["rmc.firstrow.acc"] == "2"
+    assert "rmc.col.temp" not in fmt.ggir_read_settings(with_temperature=False)
 
 
 # ----------------------------------------------------------------------------- ROS

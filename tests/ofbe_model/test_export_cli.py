@@ -14,7 +14,7 @@ import pytest
 import yaml
 
 from ofbe_data import find_calibration
-from ofbe_data.calibration.formats import FORMAT_EXTENSIONS
+from ofbe_data.calibration.formats import FORMAT_EXTENSIONS, GGIR_BACKUP_FILE, ggir_read_settings
 from ofbe_data.calibration.results import TIME_RAW
 from ofbe_data.io.formats import read_device_file
 from ofbe_data.io.manifest import load_manifest
@@ -25,6 +25,7 @@ from ofbe_data.simulator import load_config, simulate_campaign
 from ofbe_model.cli import export
 from ofbe_model.predict import predict, targets
 from tests.conftest import kalibr_imu_parameters
+from tests.ofbe_data.ggir_replica import backup_cal_coef, read_myacc_csv
 
 
 @pytest.fixture(scope="module")
@@ -72,7 +73,7 @@ def _run(capsys, *argv: str | Path) -> tuple[int, str, str]:
     return code, out, err
 
 
-@pytest.mark.parametrize("name", ["imucal", "ros", "ggir", "json"])
+@pytest.mark.parametrize("name", ["imucal", "ros", "json"])
 def test_each_format_writes_one_file_per_device_and_power_cycle(tmp_path, campaign, capsys, name) -> None:
     code, out, err = _run(capsys, name, campaign / "labels" / "mp", "--out", tmp_path / "out")
     assert code == 0, err
@@ -159,22 +160,114 @@ def test_kalibr_without_gyroscope_data_asks_for_the_values(tmp_path, campaign, c
     assert exit_.value.code == 2 and "expected a positive number, found '-1'" in capsys.readouterr().err
 
 
-def test_ggir_data_copies_the_raw_files_under_the_names_ggir_matches(tmp_path, campaign, capsys) -> None:
-    code, _, err = _run(capsys, "ggir", campaign / "labels" / "ga", "--out", tmp_path / "plain")
-    assert code == 0 and "give GGIR the files under those names, or pass --ggir-data --raw DIR" in err
-    code, _, err = _run(capsys, "ggir", campaign / "labels" / "ga", "--out", tmp_path / "g",
-                        "--raw", campaign / "raw" / "ga", "--ggir-data")
+def test_ggir_writes_one_backup_cal_coef_per_run(tmp_path, campaign, capsys, monkeypatch) -> None:
+    """Issue 33: GGIR takes one ``backup.cal.coef`` file (g.part1's parameter), so one export run
+    writes one, with a row per raw file of every device and power cycle; ``--store`` still files
+    each device and power cycle's own rows by its recording time."""
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "1750000000")
+    labels, raw = campaign / "labels" / "ga", campaign / "raw" / "ga"
+    code, out, err = _run(capsys, "ggir", labels, "--out", f"{tmp_path / 'g'}/")
     assert code == 0, err
-    assert "6 raw files copied into ggir-data/" in err
-    tables = [pd.read_csv(p) for p in sorted((tmp_path / "g").glob("*.ggir.csv"))]
-    rows = pd.concat(tables)
-    copied = sorted(p.name for p in (tmp_path / "g" / "ggir-data").iterdir())
-    assert copied == sorted(rows["filename"]) and len(copied) == 6  # one GGIR row per copied file
-    for name, raw in zip(rows["filename"], rows["raw_file"], strict=True):
-        copy = (tmp_path / "g" / "ggir-data" / name).read_bytes()
-        assert copy == (campaign / "raw" / "ga" / raw).read_bytes()
-    code, _, err = _run(capsys, "ggir", campaign / "labels" / "ga", "--out", tmp_path / "h", "--ggir-data")
+    assert [p.name for p in (tmp_path / "g").iterdir()] == [GGIR_BACKUP_FILE]
+    assert "1 result file written" in err
+    data = (tmp_path / "g" / GGIR_BACKUP_FILE).read_bytes()
+    table = pd.read_csv(tmp_path / "g" / GGIR_BACKUP_FILE)
+    assert set(zip(table["device"], table["power_cycle"], strict=True)) == {
+        (f"sparkfun-{d}", c) for d in (1, 2) for c in (1, 2, 3)}
+    for name in table["filename"]:  # GGIR's own look-up finds every data file's row
+        assert backup_cal_coef(data, name).scale.shape == (3,)
+    code, _, err = _run(capsys, "ggir", labels, "--out", tmp_path / "mine.csv")  # a file name: that file
+    assert code == 0 and (tmp_path / "mine.csv").read_bytes() == data
+    code, out, err = _run(capsys, "ggir", labels, "--raw", raw, "--store", tmp_path / "store")
+    assert code == 0, err
+    filed = sorted((tmp_path / "store").rglob("*.ggir.csv"))
+    assert len(filed) == 6 and out.split() == [str(p) for p in sorted(filed)] and "6 result files" in err
+    for path in filed:
+        rows = pd.read_csv(path)
+        assert len(rows) == 1 and rows["device"][0] == path.parent.name
+        assert backup_cal_coef(path.read_bytes(), rows["filename"][0]).scale.shape == (3,)
+
+
+@pytest.fixture(scope="module")
+def hostile_session(tmp_path_factory) -> Path:
+    """Two power cycles of two loggers, 60 s at 150 Hz each, labelled, whose raw files hold what
+    the serial link does to real ones: boot noise, a truncated line, a 0xFF byte, a non-numeric
+    field, dropped samples."""
+    tmp = tmp_path_factory.mktemp("hostile")
+    rng = np.random.default_rng(5)
+    for pc in (1, 2):
+        folder = tmp / "raw" / "bench" / f"s{pc}"
+        (folder / "rec-01").mkdir(parents=True)
+        for d in (1, 2):
+            n = 9000
+            t_us = 4093012 + np.round(np.arange(n) * 1e6 / 150).astype(np.int64)
+            counts = np.round(np.array([3 * d, -5, 259]) + 1.4 * rng.standard_normal((n, 3))).astype(int)
+            lines = [f"{t},{x},{y},{z}".encode() for t, (x, y, z) in zip(t_us, counts, strict=True)]
+            lines[1000] = lines[1000][:9]
+            lines[2000] = lines[2000][:3] + b"\xff" + lines[2000][3:]
+            lines[3000] = lines[3000].replace(b",", b",x", 1)
+            del lines[4000:4003]
+            head = (f"ets Jun  8 2016 00:22:57\r\n# ofbe-logger fw=1.4.2 board=sparkfun-thing-plus-esp32 "
+                    f"chip=ADXL345 device=sparkfun-{d}\n# odr_hz=150 range_g=16 full_res=1 lsb_per_g=256\n"
+                    f"# host_start_utc=2025-03-1{pc}T10:22:31.{100 * d}Z\nt_us,ax,ay,az\n").encode()
+            (folder / "rec-01" / f"sparkfun-{d}.csv").write_bytes(head + b"\n".join(lines) + b"\n")
+        (folder / "session.yaml").write_text(
+            f"format: ofbe-session/1\ncampaign: bench\nsession: s{pc}\nkind: gravity-aligned\n"
+            f"site: {{gravity_mps2: 9.80665}}\npower_cycle: {pc}\ndevices:\n"
+            "  sparkfun-1: {model: ADXL345, role: dut, format: ofbe-logger}\n"
+            "  sparkfun-2: {model: ADXL345, role: dut, format: ofbe-logger}\n"
+            "recordings:\n  - id: rec-01\n"
+            "    files: {sparkfun-1: rec-01/sparkfun-1.csv, sparkfun-2: rec-01/sparkfun-2.csv}\n")
+    outcomes = label_sessions(expand_sessions([tmp / "raw" / "bench"]), LabelParams(min_samples=1000),
+                              tmp / "labels", jobs=1, progress=False)
+    assert [o.error for o in outcomes if o.error] == []
+    return tmp
+
+
+def test_ggir_data_rebuilds_the_raw_files_for_ggirs_reader(tmp_path, hostile_session, capsys) -> None:
+    """Issue 33: ``--ggir-data`` used to copy the raw files byte for byte, and GGIR's csv reader
+    stops at the first garbled line or fails on a 0xFF byte. Now each file is rebuilt from the
+    samples ofbe's validating reader kept, under the name of its backup.cal.coef row: GGIR's
+    reading with the README's rmc.* settings (replicated) takes every line, and the values are
+    the reader's, bit for bit."""
+    labels, raw = hostile_session / "labels" / "bench", hostile_session / "raw" / "bench"
+    code, _, err = _run(capsys, "ggir", labels, "--out", tmp_path / "plain.csv")
+    assert code == 0 and "pass --ggir-data --raw DIR to have them rebuilt" in err
+    code, _, err = _run(capsys, "ggir", labels, "--out", tmp_path / "g", "--raw", raw, "--ggir-data")
+    assert code == 0, err
+    assert "4 raw files rebuilt into ggir-data/" in err
+    out = tmp_path / "g"
+    assert sorted(p.name for p in out.iterdir()) == sorted(
+        [GGIR_BACKUP_FILE, export.GGIR_DATA, export.GGIR_DATA_README])
+    backup = (out / GGIR_BACKUP_FILE).read_bytes()
+    table = pd.read_csv(out / GGIR_BACKUP_FILE)
+    written = sorted(p.name for p in (out / "ggir-data").iterdir())
+    assert written == sorted(table["filename"]) and len(written) == 4  # one GGIR row per data file
+    settings = ggir_read_settings(with_temperature=False)
+    readme = (out / export.GGIR_DATA_README).read_text()
+    assert all(f"{key} = {value}" in readme for key, value in settings.items())
+    assert f'backup.cal.coef = "{GGIR_BACKUP_FILE}"' in readme
+    for name, raw_file, device in zip(table["filename"], table["raw_file"], table["device"], strict=True):
+        m = load_manifest(raw / raw_file.split("/")[0])
+        rec = read_device_file(raw / raw_file, m.devices[device])
+        assert len(rec.diagnostics.skipped) == 3  # the raw file is hostile
+        data = (out / "ggir-data" / name).read_bytes()
+        sf, frame = read_myacc_csv(data, settings, name)
+        assert sf == 150.0 and len(frame) == rec.n == 9000 - 3 - 3
+        np.testing.assert_array_equal(frame[["x", "y", "z"]].to_numpy(), rec.acc / 9.80665)
+        assert rec.start_utc is not None
+        np.testing.assert_allclose(frame["time"] - rec.start_utc.timestamp(), rec.t - rec.t[0], atol=1e-6)
+        assert backup_cal_coef(backup, name).offset.shape == (3,)
+    code, _, err = _run(capsys, "ggir", labels, "--out", tmp_path / "h", "--ggir-data")
     assert code == 2 and "--ggir-data needs --raw DIR" in err and not (tmp_path / "h").exists()
+    changed = raw / "s2" / "rec-01" / "sparkfun-2.csv"
+    original = changed.read_bytes()
+    try:
+        changed.write_bytes(original.replace(b"\n4", b"\n5", 1))
+        code, _, err = _run(capsys, "ggir", labels, "--out", tmp_path / "k", "--raw", raw, "--ggir-data")
+        assert code == 1 and "expected the bytes that were labelled" in err and not (tmp_path / "k").exists()
+    finally:
+        changed.write_bytes(original)
 
 
 def test_one_result_goes_to_the_file_named(tmp_path, campaign, capsys) -> None:

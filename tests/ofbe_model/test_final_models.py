@@ -261,6 +261,14 @@ def test_a_per_device_dataset_gets_one_model_per_device_and_predict_picks_it(rot
     rot = tmp_path / "models" / "rot"
     assert (f"{rot / OFBENET_NAME}: no such file; {rot} holds one model per device (sparkfun-1, sparkfun-2): "
             "pass the folder") in err
+    # ofbe-export tflite quantises a per-device model with its own device's windows, as its card says
+    one = rot / "sparkfun-1" / OFBENET_NAME
+    assert export_main(["tflite", str(one), "--out", f"{tmp_path / 'fw'}/"]) == 0
+    sidecar = json.loads((tmp_path / "fw" / "final.tflite.json").read_text())
+    card = json.loads((rot / "sparkfun-1" / CARD_JSON).read_text())
+    assert sidecar["representative"]["windows_given"] == card["training_data"]["n_windows"]
+    assert sidecar["representative"]["source"].startswith(f"{ds} (the model card's training data), device "
+                                                          "sparkfun-1,")
 
 
 def test_the_deploy_fails_loudly_when_a_model_is_far_worse_than_its_cross_validated_figure(
