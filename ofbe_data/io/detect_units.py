@@ -128,6 +128,15 @@ def _dist(norm: float, value: float) -> float:
     return abs(math.log(norm / value)) if norm > 0 else math.inf
 
 
+def _contradiction(norm: float, stated: str) -> str | None:
+    """The unit the norm at rest fits when it plainly does not fit ``stated`` (more than 30 %
+    off 1 g in it, within :data:`UNIT_TOLERANCE` in the other), else None."""
+    if stated not in ("m/s2", "g", "mg") or abs(norm / _one_g(stated) - 1.0) <= 0.3:
+        return None
+    fits = sorted((_dist(norm, _one_g(u)), u) for u in ("m/s2", "g", "mg") if u != stated)
+    return fits[0][1] if fits[0][0] <= UNIT_TOLERANCE else None
+
+
 def _power_of_two(norm: float, limit: float = math.inf, tol: float = UNIT_TOLERANCE) -> float | None:
     """The power of two 2^k (k in :data:`COUNTS_BITS`, ≤ ``limit``) within ``tol`` of ``norm``."""
     if not norm > 0:
@@ -245,6 +254,14 @@ def decide_acc_unit(path: str | Path, acc: np.ndarray, window: int, name_unit: s
     if stated is not None:
         g = norm / _one_g(stated)
         why = "given with --unit" if forced else f"{stated_by} so"
+        other = None if forced else _contradiction(norm, stated)
+        if other is not None:
+            # the names say one unit and the values plainly are another (a header "ax (g)" over
+            # m/s² values): neither is taken on trust, the user says which
+            raise DetectionError(path, f"{stated_by} {stated}, but ‖mean‖ at rest ({where}) is "
+                                       f"{fmt_num(norm, 5)} = {g:.3g} g in {stated}, and "
+                                       f"{norm / _one_g(other):.4g} g in {other}",
+                                 f"--unit {other} if the values are {other}, --unit {stated} if they are")
         warn = ()
         if abs(g - 1.0) > 0.3:
             warn = (f"‖mean‖ at rest is {fmt_num(norm, 5)} {stated} = {g:.3g} g, not about 1 g: is the "
