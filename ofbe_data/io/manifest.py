@@ -36,6 +36,7 @@ from ofbe_data.io.device_options import (
     option_keys,
 )
 from ofbe_data.io.gravity import local_gravity
+from ofbe_data.io.shared_files import distinct_columns, file_identity, same_file_note
 from ofbe_data.io.typedconfig import closest_key, key_homes, record_keys, unknown_key_found
 from ofbe_data.io.yamlio import FieldPath, YamlDocument, YamlProblem, format_field, read_yaml
 
@@ -475,7 +476,7 @@ def _parse_recordings(v: _Validator, data: dict[str, Any], devices: dict[str, De
     if not isinstance(raw, list) or not raw:
         raise v.fail(["recordings"], "a non-empty list of recordings", _describe(raw))
     seen_ids: dict[str, int] = {}
-    seen_paths: dict[str, str] = {}
+    seen_paths: dict[str, tuple[str, str]] = {}
     out: list[RecordingSpec] = []
     for i, entry in enumerate(raw):
         where: list[str | int] = ["recordings", i]
@@ -501,33 +502,26 @@ def _parse_recordings(v: _Validator, data: dict[str, Any], devices: dict[str, De
                 raise v.fail([*where, "files"], f"a file for declared device {dev!r}",
                              "no entry for it")
         clean: dict[str, str] = {}
-        here: dict[str, str] = {}
+        here: dict[str, tuple[str, str]] = {}
         for dev, rel in files.items():
             fw: list[str | int] = [*where, "files", str(dev)]
             rel = _check_path(v, folder, rel, fw)
-            key = os.path.normpath(rel)
+            key = file_identity(folder / rel, rel)
             if key in here:  # two triads of one file: each device reads its own columns
-                other = here[key]
-                if not _distinct_columns(devices[other], devices[str(dev)]):
+                other, named = here[key]
+                if not distinct_columns(devices[other].csv, devices[str(dev)].csv):
                     raise v.fail(fw, "a file shared by devices of one recording only when each reads its "
                                  "own columns (format csv, different ax, ay, az)",
-                                 f"{rel!r}, also named for device {other!r}")
+                                 f"{rel!r}, also named for device {other!r}" + same_file_note(rel, named))
             elif key in seen_paths:
+                at, named = seen_paths[key]
                 raise v.fail(fw, "a file used in one recording only",
-                             f"{rel!r}, also named at {seen_paths[key]}")
-            seen_paths[key] = format_field(fw)
-            here.setdefault(key, str(dev))
+                             f"{rel!r}, also named at {at}" + same_file_note(rel, named))
+            seen_paths[key] = (format_field(fw), rel)
+            here.setdefault(key, (str(dev), rel))
             clean[str(dev)] = rel
         out.append(RecordingSpec(rid, clean, nominal))
     return tuple(out)
-
-
-def _distinct_columns(a: DeviceSpec, b: DeviceSpec) -> bool:
-    """Whether two devices read different acceleration columns of one file (both generic csv)."""
-    if a.csv is None or b.csv is None:
-        return False
-    axes = ("ax", "ay", "az")
-    return not set(a.csv.columns[k] for k in axes) & set(b.csv.columns[k] for k in axes)
 
 
 def parse_manifest(path: Path, doc: YamlDocument) -> SessionManifest:
