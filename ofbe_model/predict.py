@@ -46,6 +46,9 @@ from ofbe_model.estimators.base import Estimator, EstimatorError
 from ofbe_model.estimators.domain import TrainingDomain, domain_problems, window_direction
 
 DEFAULT_WINDOW = 3000
+BARE_FILES = ("a bare file is read as ofbe-logger or mscip-csv; for any other file (a generic csv, "
+              "another logger's format) make its folder a session with `ofbe-session init FOLDER` and "
+              "pass the folder")
 MODEL_FILES = {"ofbenet": OFBENET_NAME, "gravity-prior": PRIOR_NAME}
 """The deployed models' file names (:mod:`ofbe_model.deploy.final`), by estimator."""
 
@@ -176,6 +179,9 @@ def predict_files(files: dict[str | None, Path], items: Sequence[Target], window
     groups: dict[Path, list[int]] = {}
     for i, t in enumerate(items):
         file = files.get(t.device) if per_device else files[None]
+        if file is None and t.recording is None:  # unreadable: that is its error, whatever the model
+            results[i] = {"file": str(t.path), "device": t.device, "g_local": t.g_local, "error": t.problem}
+            continue
         if file is None:
             results[i] = {"file": str(t.path), "device": t.device, "g_local": t.g_local,
                           "error": f"no model for device {t.device!r} in this model set (it has one for "
@@ -233,7 +239,9 @@ def targets(paths: Sequence[str | Path], device: str | None, g_local: float | No
                 name = device or rec.header.get("device") or p.stem
                 out.append(Target(p, name, g_local or STANDARD_GRAVITY, rec))
             except OfbeError as exc:
-                out.append(Target(p, device or p.stem, g_local or STANDARD_GRAVITY, problem=str(exc)))
+                text = str(exc).removeprefix(f"{p}: ")  # the result names the file already
+                out.append(Target(p, device or p.stem, g_local or STANDARD_GRAVITY,
+                                  problem=f"{text}; {BARE_FILES}"))
         else:
             raise EstimatorError(f"{p}: expected a session folder or a raw device file, found no such path")
     return out

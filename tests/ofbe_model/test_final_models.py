@@ -316,3 +316,17 @@ def test_predict_refuses_a_model_whose_estimates_are_not_finite(deployed, tmp_pa
     assert out["results"] and all("bias_m_s2" not in r for r in out["results"])
     assert all(r["error"].startswith("the model's estimate is not finite (NaN or inf)")
                for r in out["results"])
+
+
+def test_a_bare_generic_csv_is_named_once_with_the_way_to_read_it(deployed, tmp_path, capsys) -> None:
+    """ofbe-predict reads bare ofbe-logger / mscip-csv files; any other bare file gets one error line
+    naming the file once and saying how to make it readable (a session), with a model set too."""
+    _, _, folder = deployed
+    bare = tmp_path / "x.csv"
+    bare.write_text("t,ax,ay,az\n" + "".join(f"{i / 100:.2f},0.01,0.02,9.81\n" for i in range(1200)))
+    assert predict_main([str(folder / PRIOR_NAME), str(bare), "--window-length", str(T)]) == 1
+    err = [line for line in capsys.readouterr().err.splitlines() if "error:" in line]
+    assert err == [f"ofbe-predict: error: {bare}: expected a '# ofbe-logger' header line, found none in the "
+                   "file; a bare file is read as ofbe-logger or mscip-csv; for any other file (a generic csv, "
+                   "another logger's format) make its folder a session with `ofbe-session init FOLDER` and "
+                   "pass the folder"]
