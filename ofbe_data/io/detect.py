@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ofbe_data.core.errors import RawFormatError
+from ofbe_data.io.detect_banner import read_banner
 from ofbe_data.io.detect_columns import _given_parts, _named_parts, _names, _positional_parts, _time_column
 from ofbe_data.io.detect_layout import (
     LAYOUT_LINES,
@@ -196,6 +197,14 @@ def _sniff_csv(path: Path, lines: list[str], hints: Hints) -> Detection:
     for key, value, why in found:
         det.add(key, value, why)
     det.warnings.extend(warnings)
+    banner = read_banner(lines, lay.data_start)
+    if banner.model is not None:
+        det.model = banner.model
+        det.add("model", banner.model, f"line {banner.model_line}: "
+                                       f"{lines[banner.model_line - 1].strip()[:60]!r}")
+    if banner.range_g is not None:
+        det.add("range_g", banner.range_g, f"line {banner.range_line}: "
+                                           f"{lines[banner.range_line - 1].strip()[:60]!r}")
     data, parsed, base = read_numbers(lines, lay)
     if data.shape[0] < 10:
         raise RawFormatError(path, "at least 10 data lines", f"{data.shape[0]}", lay.data_start + 1)
@@ -278,7 +287,7 @@ def _sniff_csv(path: Path, lines: list[str], hints: Hints) -> Detection:
         mapping = CsvMapping(
             columns=cols, time_unit=time_unit, acc_unit=ad.unit, lsb_per_g=ad.lsb_per_g,
             skip_rows=skip_rows, delimiter=lay.delimiter, header=header, comment=comment,
-            sample_rate_hz=rate, zero_counts=ad.zero_counts,
+            sample_rate_hz=rate, zero_counts=ad.zero_counts, range_g=banner.range_g,
             temperature_unit=(temp_unit or "C") if "temperature" in cols else "C", gyro_unit=gyro_unit)
         det.parts.append(Part(p.label, mapping, ad.direction))
     if temp_unit is not None and temp_unit != "C":

@@ -38,3 +38,25 @@ def test_a_header_unit_the_values_agree_with_is_taken(tmp_path) -> None:
         _file(folder, unit, level)
         assert main(["init", str(folder)]) == 0
         assert load_manifest(folder).duts[0].csv.acc_unit == unit
+
+
+def test_the_files_banner_gives_model_and_range(tmp_path, capsys) -> None:
+    """'# ADXL345 on an Arduino, range +/-4g' above the data: init writes model ADXL345 and
+    range_g 4 and says which line said so; a banner naming two chips gives no model."""
+    rng = np.random.default_rng(1)
+    acc = np.array([0.02, -0.01, 1.0]) + rng.normal(0, 0.003, (3000, 3))
+    rows = "".join(f"{i * 10},{a[0]:.4f},{a[1]:.4f},{a[2]:.4f}\n" for i, a in enumerate(acc))
+    folder = tmp_path / "s1"
+    folder.mkdir()
+    (folder / "rec.csv").write_text("# ADXL345 on an Arduino Uno, range +/-4g, ODR 100 Hz\nt_ms,ax_g,ay_g,az_g\n"
+                                    + rows)
+    assert main(["init", str(folder)]) == 0
+    out = capsys.readouterr().out
+    assert "line 1: '# ADXL345 on an Arduino Uno, range +/-4g, ODR 100 Hz'" in out
+    dut = load_manifest(folder).duts[0]
+    assert dut.model == "ADXL345" and dut.csv.range_g == 4.0
+    other = tmp_path / "s2"
+    other.mkdir()
+    (other / "rec.csv").write_text("# ADXL345 and MPU-6050 side by side\nt_ms,ax_g,ay_g,az_g\n" + rows)
+    assert main(["init", str(other)]) == 0
+    assert load_manifest(other).duts[0].model == "unknown"
