@@ -48,6 +48,7 @@ from ofbe_data.dataset.store import (
     shard_name,
     signal_names,
 )
+from ofbe_data.dataset.verify_signals import compare_signals
 
 # ---------------------------------------------------------------------------------------------
 # Verification and loading
@@ -101,67 +102,70 @@ def _compare_meta(h5_path: Path, pq_path: Path, table: pa.Table, protocols: Sequ
     if found != [f"{f.name}:{f.type}" for f in schema]:
         raise DatasetError(pq_path, f"the columns {[f'{f.name}:{f.type}' for f in schema]}", f"{found}")
     n = table.num_rows
-    with h5py.File(h5_path, "r") as f:
-        if "meta" not in f or "y" not in f:
-            raise DatasetError(h5_path, "datasets X, y and group meta", f"{sorted(f)}")
-        group = f["meta"]
-        if sorted(group) != sorted(schema.names):
-            raise DatasetError(h5_path, f"one dataset per column {sorted(schema.names)}", f"{sorted(group)}",
-                               "meta")
-        for fld in schema:
-            ds = group[fld.name]
-            if ds.shape != (n,):
-                raise DatasetError(h5_path, f"shape ({n},) like {PARQUET_NAME}", f"{ds.shape}",
-                                   f"meta/{fld.name}")
-            col = table.column(fld.name)
-            is_string = h5py.check_string_dtype(ds.dtype) is not None
-            want = {pa.string(): "UTF-8 strings", pa.int64(): "int64", pa.float64(): "float64"}[fld.type]
-            if (is_string != (fld.type == pa.string())
-                    or (not is_string and ds.dtype != np.dtype(want))):
-                raise DatasetError(h5_path, want, f"{ds.dtype}", f"meta/{fld.name}")
-            if fld.type == pa.string():
-                same = ds.asstr()[...].tolist() == col.to_pylist()
-            else:
-                same = np.array_equal(ds[...], col.to_numpy(), equal_nan=fld.type == pa.float64())
-            if not same:
-                raise DatasetError(h5_path, f"meta/{fld.name} equal to the column of {PARQUET_NAME}",
-                                   "different values", f"meta/{fld.name}")
-        y = f["y"]
-        if y.shape != (n, 3) or y.dtype != np.float64:
-            raise DatasetError(h5_path, f"float64 of shape ({n}, 3)", f"{y.dtype} {y.shape}", "y")
-        bias = np.column_stack([table.column(f"bias_{a}").to_numpy() for a in "xyz"])
-        if not np.array_equal(y[...], bias):
-            raise DatasetError(h5_path, f"y equal to bias_x/y/z of {PARQUET_NAME}", "different values", "y")
+    try:
+        with h5py.File(h5_path, "r") as f:
+            if "meta" not in f or "y" not in f:
+                raise DatasetError(h5_path, "datasets X, y and group meta", f"{sorted(f)}")
+            group = f["meta"]
+            if sorted(group) != sorted(schema.names):
+                raise DatasetError(h5_path, f"one dataset per column {sorted(schema.names)}",
+                                   f"{sorted(group)}", "meta")
+            for fld in schema:
+                ds = group[fld.name]
+                if ds.shape != (n,):
+                    raise DatasetError(h5_path, f"shape ({n},) like {PARQUET_NAME}", f"{ds.shape}",
+                                       f"meta/{fld.name}")
+                col = table.column(fld.name)
+                is_string = h5py.check_string_dtype(ds.dtype) is not None
+                want = {pa.string(): "UTF-8 strings", pa.int64(): "int64", pa.float64(): "float64"}[fld.type]
+                if (is_string != (fld.type == pa.string())
+                        or (not is_string and ds.dtype != np.dtype(want))):
+                    raise DatasetError(h5_path, want, f"{ds.dtype}", f"meta/{fld.name}")
+                if fld.type == pa.string():
+                    same = ds.asstr()[...].tolist() == col.to_pylist()
+                else:
+                    same = np.array_equal(ds[...], col.to_numpy(), equal_nan=fld.type == pa.float64())
+                if not same:
+                    raise DatasetError(h5_path, f"meta/{fld.name} equal to the column of {PARQUET_NAME}",
+                                       "different values", f"meta/{fld.name}")
+            y = f["y"]
+            if y.shape != (n, 3) or y.dtype != np.float64:
+                raise DatasetError(h5_path, f"float64 of shape ({n}, 3)", f"{y.dtype} {y.shape}", "y")
+            bias = np.column_stack([table.column(f"bias_{a}").to_numpy() for a in "xyz"])
+            if not np.array_equal(y[...], bias):
+                raise DatasetError(h5_path, f"y equal to bias_x/y/z of {PARQUET_NAME}", "different values",
+                                   "y")
+    except OSError as exc:  # e.g. a chunk of y failing its Fletcher-32 checksum
+        raise DatasetError(h5_path, "readable y and meta/ (chunks passing their Fletcher-32 checksums)",
+                           f"a read error ({' '.join(str(exc).split())})") from exc
 
 
 _SHARD_ATTRS = ("shard", "shard_windows", "first_window_id")
 
 
-def _check_signals(folder: Path, names: Sequence[str], counts: Sequence[int], table: pa.Table,
-                   protocols: Sequence[str], t: int, sharded: bool) -> None:
-    """Each signal file: its schema (``windows.parquet``'s columns plus X, (T, 3) float32), its row
-    count (its HDF5 file's windows) and every column but X equal to its rows of the index. X itself
-    is covered by the checksums: reading it would read every sample."""
+def _check_samples(folder: Path, h5_names: Sequence[str], names: Sequence[str], counts: Sequence[int],
+                   table: pa.Table, protocols: Sequence[str], t: int, sharded: bool) -> None:
+    """Every HDF5 file's X read whole (its chunks' Fletcher-32 sums) and, when the folder has signal
+    files, each one's schema (``windows.parquet``'s columns plus X, (T, 3) float32) and row count
+    (its HDF5 file's windows), then its rows against the HDF5 file's X bit for bit and against its
+    rows of the index (:func:`~ofbe_data.dataset.verify_signals.compare_signals`)."""
     schema = _signal_schema(protocols, t, sharded)
     columns = [c for c in schema.names if c != SIGNAL_COLUMN]
     first = 0
-    for name, n in zip(names, counts, strict=True):
-        path = folder / name
-        try:
-            pf = pq.ParquetFile(path)
-            found = pf.schema_arrow
-            same = _same_signal_schema(found, schema, t)
-            rows = pf.read(columns=columns).replace_schema_metadata(None) if same else None
-        except (OSError, pa.ArrowException) as exc:
-            raise DatasetError(path, "a readable Parquet file", f"an unreadable one ({exc})") from exc
-        if rows is None:
-            raise DatasetError(path, f"the columns {[f'{f.name}:{f.type}' for f in schema]}",
-                               f"{[f'{f.name}:{f.type}' for f in found]}")
-        if rows.num_rows != n:
-            raise DatasetError(path, f"{n} rows (the windows of its HDF5 file)", f"{rows.num_rows}")
-        if not rows.equals(table.slice(first, n).select(columns)):
-            raise DatasetError(path, f"the columns of {PARQUET_NAME} equal to its rows "
-                               f"{first}..{first + n - 1}", "different values")
+    for i, (h5_name, n) in enumerate(zip(h5_names, counts, strict=True)):
+        path = folder / names[i] if names else None
+        if path is not None:
+            try:
+                with pq.ParquetFile(path) as pf:
+                    found, rows = pf.schema_arrow, pf.metadata.num_rows
+            except (OSError, pa.ArrowException) as exc:
+                raise DatasetError(path, "a readable Parquet file", f"an unreadable one ({exc})") from exc
+            if not _same_signal_schema(found, schema, t):
+                raise DatasetError(path, f"the columns {[f'{f.name}:{f.type}' for f in schema]}",
+                                   f"{[f'{f.name}:{f.type}' for f in found]}")
+            if rows != n:
+                raise DatasetError(path, f"{n} rows (the windows of its HDF5 file)", f"{rows}")
+        compare_signals(folder / h5_name, path, table.slice(first, n).select(columns), first)
         first += n
 
 
@@ -232,26 +236,30 @@ def verify_dataset(path: str | Path) -> dict[str, Any]:
     shard of a sharded dataset), ``windows.parquet`` and ``datapackage.json``; the dataset
     description against the HDF5 attributes; shapes and dtypes of ``X`` and ``y``; the Parquet
     schema; and ``meta/`` and ``y`` against the Parquet columns, row by row (each shard against
-    its rows of the index). The signal Parquet files, when ``SHA256SUMS`` lists them (it must
-    list all or none): their schema, row counts and every column but ``X`` against their rows of
-    ``windows.parquet``; and the sha256 of every file ``croissant.json`` names. ``X`` itself, in
-    HDF5 and in Parquet, is covered by the checksums (and by the HDF5 chunks' Fletcher-32 sums
-    when read). Folders written before the signal files and ``croissant.json`` existed verify
-    without them.
+    its rows of the index); the sha256 of every file ``croissant.json`` names. Then every chunk of
+    ``X`` is read (so its Fletcher-32 sum is checked), 256 windows at a time, and each signal
+    Parquet file, when ``SHA256SUMS`` lists them (it must list all or none), is checked for its
+    schema and row count and compared with its HDF5 file window by window: ``X`` bit for bit and
+    every other column against its rows of ``windows.parquet``. Sums can be recomputed after an
+    edit; this finds the two copies disagreeing, naming the first window that differs. Folders
+    written before the signal files and ``croissant.json`` existed verify without them.
 
     Returns
     -------
     dict
         ``path``, ``schema_version``, ``name``, ``campaign``, ``n_windows``, ``n_recordings``,
         ``n_devices``, ``window_length``, ``stride``, ``protocols``, ``n_shards`` (1 for
-        ``windows.h5``) and ``files`` (name → sha256).
+        ``windows.h5``), ``signals`` (the signal files compared with the HDF5 files, in window
+        order; none for older folders) and ``files`` (name → sha256).
 
     Raises
     ------
     ChecksumError
         A file's hash differs from the recorded one (naming the file and both hashes).
     DatasetError
-        Anything else (naming the file, what was expected and what was found).
+        Anything else (naming the file, what was expected and what was found; for a signal file
+        that differs from its HDF5 file, the first ``window_id`` and row that does; for a chunk
+        that cannot be read, the HDF5 file and window).
     """
     folder = Path(path)
     if not folder.is_dir():
@@ -314,18 +322,17 @@ def verify_dataset(path: str | Path) -> dict[str, Any]:
             raise DatasetError(pq_path, f"{n} rows (one per window of {H5_NAME})", f"{table.num_rows}")
         _compare_meta(h5_path, pq_path, table, list(info.protocols))
         counts = [n]
-    if signals:
-        _check_signals(folder, signals, counts, table.replace_schema_metadata(None), list(info.protocols), t,
-                       sharded)
     if CROISSANT_NAME in sums:
         _check_croissant(folder, actual)
+    _check_samples(folder, h5_names, signals, counts, table.replace_schema_metadata(None),
+                   list(info.protocols), t, sharded)
     if not np.array_equal(table.column("window_id").to_numpy(), np.arange(n)):
         raise DatasetError(pq_path, "window_id = 0..N-1 in order", "other values", "window_id")
     keys = table.select(list(RECORDING_KEY)).to_pandas().drop_duplicates()
     return {"path": str(folder), "schema_version": SCHEMA_VERSION, "name": info.name,
             "campaign": info.campaign, "n_windows": n, "n_recordings": int(len(keys)),
             "n_devices": int(keys["device"].nunique()), "window_length": t, "stride": info.stride,
-            "protocols": list(info.protocols), "n_shards": len(h5_names),
+            "protocols": list(info.protocols), "n_shards": len(h5_names), "signals": list(signals),
             "files": dict(sorted(actual.items()))}
 
 
