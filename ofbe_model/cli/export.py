@@ -48,6 +48,7 @@ from ofbe_data import __version__
 from ofbe_data.calibration import formats as fmt
 from ofbe_data.calibration.noise import RawFiles, attach_raw_times, gyro_noise_of, noise_of
 from ofbe_data.calibration.results import CalibrationResult, Collected, Segment, load_results
+from ofbe_data.calibration.ros_names import ros_node_problem
 from ofbe_data.calibration.store import CalibrationStoreError, store_path
 from ofbe_data.core.atomic import atomic_directory, write_bytes_atomic
 from ofbe_data.core.cli import EXIT_DATA, EXIT_OK, EXIT_USAGE, command, fail, io_failure
@@ -105,6 +106,14 @@ def written_time() -> datetime:
 
 
 # ----------------------------------------------------------------------------- calibration formats
+
+
+def _ros_node(text: str) -> str:
+    """``--ros-node``: a node key ROS 2's parameter-file parser accepts (:func:`ros_node_problem`)."""
+    problem = ros_node_problem(text)
+    if problem is not None:
+        raise argparse.ArgumentTypeError(f"{problem} (ROS 2 would refuse the file), found {text!r}")
+    return text
 
 
 def _collect(args: argparse.Namespace, need_raw: bool = False) -> tuple[Collected, RawFiles | None]:
@@ -490,7 +499,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--raw", type=Path,
                    help="the campaign's raw folder: recording start times, and the segments kalibr analyses")
     p.add_argument("--frame-id", default=fmt.DEFAULT_FRAME_ID, help="ros: frame_id (default %(default)s)")
-    p.add_argument("--ros-node", default=fmt.ROS_NODE,
+    p.add_argument("--ros-node", default=fmt.ROS_NODE, type=_ros_node,
                    help="ros: the node the parameters are for (default %(default)s: every node that loads "
                         "the file)")
     p.add_argument("--g-convention", choices=fmt.GGIR_CONVENTIONS, default="unit-sphere",
