@@ -35,6 +35,7 @@ from __future__ import annotations
 import argparse
 import os
 import re
+import shutil
 import sys
 import tempfile
 from collections.abc import Callable, Sequence
@@ -446,24 +447,57 @@ def write_outputs(files: Sequence[ExportFile], out: Path | None, store: Path | N
     out_targets, new_folder = (([], False) if out is None or not to_out
                                else _out_targets(to_out, out, force, out_is_folder))
     store_targets = _store_targets(files, store, force) if store is not None else []
-    written = []
-    if new_folder and out is not None:
-        with atomic_directory(out) as tmp:
+    for path, _ in ([] if new_folder else out_targets) + store_targets:
+        _check_folder_for(path)
+    written: list[Path] = []
+    made: list[Path] = []  # files and folders this call created, removed again if a later write fails
+    try:
+        if new_folder and out is not None:
+            with atomic_directory(out) as tmp:
+                for path, data in out_targets:
+                    target = tmp / path.relative_to(out)
+                    target.parent.mkdir(parents=True, exist_ok=True)
+                    target.write_bytes(data)
+            written.append(out)
+            made.append(out)
+        else:
             for path, data in out_targets:
-                target = tmp / path.relative_to(out)
-                target.parent.mkdir(parents=True, exist_ok=True)
-                target.write_bytes(data)
-        written.append(out)
-    else:
-        for path, data in out_targets:
+                made += _new_folders(path.parent) + ([] if path.exists() else [path])
+                path.parent.mkdir(parents=True, exist_ok=True)
+                write_bytes_atomic(path, data)
+                written.append(path)
+        for path, data in store_targets:
+            made += _new_folders(path.parent) + ([] if path.exists() else [path])
             path.parent.mkdir(parents=True, exist_ok=True)
             write_bytes_atomic(path, data)
             written.append(path)
-    for path, data in store_targets:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        write_bytes_atomic(path, data)
-        written.append(path)
+    except BaseException:
+        for path in reversed(made):  # newest first: files before the folders that hold them
+            if path.is_dir() and not path.is_symlink():
+                shutil.rmtree(path, ignore_errors=True)
+            else:
+                path.unlink(missing_ok=True)
+        raise
     return written
+
+
+def _new_folders(folder: Path) -> list[Path]:
+    """The folders ``folder.mkdir(parents=True)`` would create, outermost first."""
+    missing = []
+    while not folder.exists() and folder != folder.parent:
+        missing.append(folder)
+        folder = folder.parent
+    return missing[::-1]
+
+
+def _check_folder_for(path: Path) -> None:
+    """Refuse, before anything is written, a target whose folder cannot be made: the nearest
+    existing ancestor of its folder must be a folder (not a file)."""
+    folder = path.parent
+    while not folder.exists() and folder != folder.parent:
+        folder = folder.parent
+    if not folder.is_dir():
+        raise CalibrationStoreError(f"{path}: expected {folder} to be a folder to write into, found a file")
 
 
 # ----------------------------------------------------------------------------- command
