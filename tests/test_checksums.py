@@ -78,3 +78,20 @@ def test_same_bytes_whatever_the_simd_width_or_blas_kernel(tmp_path: Path) -> No
     haswell = _lists(tmp_path, "haswell", {"OPENBLAS_CORETYPE": "Haswell"})
     assert narrowed == default
     assert haswell == default
+
+
+def test_names_with_a_newline_or_a_backslash_are_escaped_as_sha256sum_reads_them(tmp_path: Path) -> None:
+    """GNU coreutils' own escaping: a raw file named with a newline cannot break the list."""
+    (tmp_path / "raw").mkdir()
+    for name in ("a\nb.csv", "c\\d.csv", "plain.csv"):
+        (tmp_path / "raw" / name).write_bytes(name.encode())
+    path = write_sha256_list(tmp_path / "list.sha256", [tmp_path / "raw"], base=tmp_path)
+    lines = path.read_text().split("\n")
+    assert len(lines) == 4 and lines[-1] == ""  # three files, three lines
+    assert lines[0].startswith("\\") and lines[0].endswith("  raw/a\\nb.csv")
+    assert lines[2].endswith("  raw/plain.csv") and not lines[2].startswith("\\")
+    checked = subprocess.run(["sha256sum", "-c", str(path)], cwd=tmp_path, capture_output=True, text=True)
+    assert checked.returncode == 0, checked.stdout + checked.stderr
+    (tmp_path / "raw" / "a\nb.csv").write_bytes(b"changed")
+    checked = subprocess.run(["sha256sum", "-c", str(path)], cwd=tmp_path, capture_output=True, text=True)
+    assert checked.returncode == 1 and "FAILED" in checked.stdout

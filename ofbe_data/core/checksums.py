@@ -53,7 +53,19 @@ def sha256_list(roots: Sequence[str | Path], base: str | Path = ".") -> bytes:
         elif root.is_dir():
             files.update(p.resolve() for p in root.rglob("*") if p.is_file())
     named = sorted((p.relative_to(base).as_posix(), p) for p in files)
-    return "".join(f"{file_sha256(p)}  {rel}\n" for rel, p in named).encode("utf-8")
+    return "".join(sha256sum_line(file_sha256(p), rel) for rel, p in named).encode("utf-8")
+
+
+def sha256sum_line(digest: str, name: str) -> str:
+    r"""One line of a list ``sha256sum -c`` reads: ``<digest>  <name>\n``.
+
+    A name holding a backslash or a newline is written as GNU coreutils writes it (md5sum.c:
+    the line starts with ``\``, the name has ``\`` as ``\\`` and a newline as ``\n``), so a
+    raw file named with a newline cannot break the list or name another file.
+    """
+    if "\\" in name or "\n" in name:
+        return "\\" + f"{digest}  " + name.replace("\\", "\\\\").replace("\n", "\\n") + "\n"
+    return f"{digest}  {name}\n"
 
 
 def write_sha256_list(path: str | Path, roots: Sequence[str | Path], base: str | Path = ".") -> Path:
