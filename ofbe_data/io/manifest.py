@@ -37,7 +37,7 @@ from ofbe_data.io.device_options import (
 )
 from ofbe_data.io.gravity import local_gravity
 from ofbe_data.io.shared_files import distinct_columns, file_identity, same_file_note
-from ofbe_data.io.typedconfig import closest_key, key_homes, record_keys, unknown_key_found
+from ofbe_data.io.typedconfig import closest_key, key_homes, record_keys, register_document, unknown_key_found
 from ofbe_data.io.yamlio import FieldPath, YamlDocument, YamlProblem, format_field, read_yaml
 
 MANIFEST_FORMAT = "ofbe-session/1"
@@ -232,6 +232,9 @@ def manifest_key_paths() -> dict[str, tuple[str, ...]]:
     for key, paths in option_key_paths("devices.<id>.").items():
         out[key] = out.get(key, ()) + paths
     return out
+
+
+register_document(MANIFEST_NAME, manifest_key_paths)
 
 
 class _Validator:

@@ -7,7 +7,7 @@ library because the toolkit's records are plain frozen dataclasses and the rules
 
 An unknown key is refused with where the key belongs, when it is known elsewhere in the same record
 (``window_s`` → ``label.static.window_s``), in another configuration record (:data:`CONFIG_RECORDS`)
-or in a session manifest (:func:`ofbe_data.io.manifest.manifest_key_paths`), and with the closest
+or in a session manifest (registered by :mod:`ofbe_data.io.manifest`), and with the closest
 known key (:func:`closest_key`) when one is close (:func:`unknown_key_found`). The known keys are
 always the records' own dataclass fields (:func:`record_keys`, :func:`key_paths`), so a field added
 later is known at once.
@@ -148,12 +148,29 @@ def key_homes(key: str, skip: Any = None, manifest: bool = True) -> list[tuple[s
         if paths:
             homes.append((where, paths))
     if manifest:
-        from ofbe_data.io.manifest import MANIFEST_NAME, manifest_key_paths  # io; late: it imports us
-
-        paths = manifest_key_paths().get(key)
-        if paths:
-            homes.append((MANIFEST_NAME, paths))
+        for where, paths_of in _DOCUMENTS.items():
+            paths = paths_of().get(key)
+            if paths:
+                homes.append((where, paths))
     return homes
+
+
+_DOCUMENTS: dict[str, Callable[[], KeyPaths]] = {}
+"""Documents below ``typedconfig``'s users whose keys an unknown-key message may point to
+(``session.yaml``), registered by the module that defines them (:func:`register_document`)."""
+
+
+def register_document(name: str, key_paths_of: Callable[[], KeyPaths]) -> None:
+    """Make the keys of a document known to unknown-key messages of other documents.
+
+    Parameters
+    ----------
+    name
+        How messages name the document (``session.yaml``).
+    key_paths_of
+        Each key of the document and its dotted paths there (called when a message is written).
+    """
+    _DOCUMENTS[name] = key_paths_of
 
 
 def _alternatives(paths: Sequence[str], limit: int = 3) -> str:
