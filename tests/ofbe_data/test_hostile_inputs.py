@@ -38,6 +38,11 @@ BOMB = ('a: &a ["x", "x", "x", "x", "x", "x", "x", "x", "x"]\n'
                   for p, c in zip("abcdefgh", "bcdefghi", strict=True)))
 
 
+HANG_GUARD_S = 180.0
+"""Bound of the hang guards: no healthy run reaches it, even a subprocess importing everything on a
+busy 2-core laptop (the refusals take a few seconds)."""
+
+
 def _run(args: list[str], timeout: float = 60, cwd: Path = ROOT) -> subprocess.CompletedProcess[str]:
     return subprocess.run([sys.executable, "-m", *args], capture_output=True, text=True, timeout=timeout,
                           cwd=cwd)
@@ -62,16 +67,17 @@ def test_a_billion_laughs_document_is_refused_fast(tmp_path: Path, kind: str) ->
     if kind == "manifest":
         session = _copy_session(tmp_path / "s")
         (session / "session.yaml").write_text(BOMB)
-        t0 = time.monotonic()
+        # a hang guard, not a speed test: expanding the aliases would not end in any bound; a healthy
+        # refusal is a subprocess's imports and a parse, which a busy laptop may take many seconds for
         done = _run(["ofbe_data.cli.label", str(session), "--out", str(tmp_path / "labels"), "--quiet"],
-                    timeout=5)
-        assert time.monotonic() - t0 < 5
+                    timeout=HANG_GUARD_S)
         line = _one_line(done.stderr)
         assert done.returncode == 1 and "session.yaml" in line
     else:
         cfg = tmp_path / "bomb.yaml"
         cfg.write_text(BOMB)
-        done = _run(["ofbe_data.cli.simulate", str(cfg), "--out", str(tmp_path / "camp")], timeout=5)
+        done = _run(["ofbe_data.cli.simulate", str(cfg), "--out", str(tmp_path / "camp")],
+                    timeout=HANG_GUARD_S)
         line = _one_line(done.stderr)
         assert done.returncode == 2 and "bomb.yaml" in line
         assert not (tmp_path / "camp").exists()
@@ -84,7 +90,7 @@ def test_a_fifo_named_as_a_device_file_is_refused_not_waited_on(tmp_path: Path) 
     target.unlink()
     os.mkfifo(target)
     done = _run(["ofbe_data.cli.label", str(session), "--out", str(tmp_path / "labels"),
-                 "--min-samples", "1000", "--quiet"], timeout=5)
+                 "--min-samples", "1000", "--quiet"], timeout=HANG_GUARD_S)
     line = _one_line(done.stderr)
     assert done.returncode == 1
     assert f"{target}: expected a readable data file, found a FIFO (named pipe)" in line
@@ -252,7 +258,7 @@ def test_random_manifests_give_only_ofbe_errors(tmp_path: Path, doc: object, raw
             load_manifest(folder)
         except OfbeError:
             pass
-        assert time.monotonic() - t0 < 2.0
+        assert time.monotonic() - t0 < 60.0  # a hang guard (a parse that does not end), not a speed test
 
 
 # ----------------------------------------------------------------------------- ofbe-dataset
