@@ -22,8 +22,8 @@ DATA_RULES: dict[str, frozenset[str]] = {
     "reports": frozenset({"core", "io", "labelling", "dataset", "reports"}),
     "calibration": frozenset({"core", "io", "labelling", "calibration"}),
     "freeliving": frozenset({"core", "io", "labelling", "freeliving"}),
-    "cli": frozenset({"core", "io", "simulator", "labelling", "dataset", "reports", "calibration", "freeliving",
-                      "cli"}),
+    "cli": frozenset({"core", "io", "simulator", "labelling", "dataset", "reports", "calibration",
+                      "freeliving", "cli"}),
 }
 #: Top-level modules of ofbe_data that are not in a wing, and what they may import.
 DATA_TOP = {"__init__": frozenset({"dataset", "labelling", "calibration"})}

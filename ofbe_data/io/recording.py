@@ -122,6 +122,34 @@ class ReadDiagnostics:
                 f"wraps {self.wraps}; saturated {self.saturated_samples}")
 
 
+FULL_SCALE_TOLERANCE = 0.05
+"""A file's largest reading on an axis is near its inferred full scale when it is within this
+fraction of the largest magnitude the file reads on any axis (a logger that calibrates each axis
+before writing moves the clipped value by the axis' bias and scale: a few per cent)."""
+
+
+@dataclass(frozen=True)
+class FullScale:
+    """Where a recording's readings can sit at its range, per axis: what a pile-up of identical
+    extreme readings is judged against (:func:`~ofbe_data.labelling.checks.clipped_samples`).
+
+    A pile-up at the high end of axis k counts as clipping only at ``high[k]`` or above, one at
+    the low end only at ``low[k]`` or below (+inf and −inf: never).
+
+    Attributes
+    ----------
+    low, high
+        (3,) float64, in the recording's unit (m/s²).
+    source
+        ``declared``: the manifest's ``range_g`` (at or beyond the reader's saturation fraction
+        of it); ``inferred``: the file's own extremes (:func:`full_scale`).
+    """
+
+    low: np.ndarray
+    high: np.ndarray
+    source: str
+
+
 @dataclass(frozen=True)
 class Recording:
     """One device's file of one recording, in SI units.
@@ -150,6 +178,10 @@ class Recording:
         Further per-sample columns by name (e.g. gyro, temperature), (N,) float64.
     diagnostics
         What the reader saw.
+    full_scale
+        The range a pile-up of extreme readings is judged against (:class:`FullScale`); None:
+        the format's own rule (the ofbe-logger's exact converter limits flag saturation, and a
+        pile-up at any extreme of a segment counts as clipping).
     """
 
     path: Path
@@ -163,6 +195,7 @@ class Recording:
     header: dict[str, str]
     diagnostics: ReadDiagnostics
     extra: dict[str, np.ndarray] = field(default_factory=dict)
+    full_scale: FullScale | None = None
 
     def gyro(self) -> np.ndarray | None:
         """Angular rate, (N, 3) rad/s in the sensor frame, or None when the file has no gyroscope
@@ -211,3 +244,77 @@ def median(x: np.ndarray) -> float:
     if not middle.all():  # a zero: which one is numpy's to say
         return float(np.median(x))
     return float(np.mean(middle))
+
+
+def output_steps(acc: np.ndarray) -> np.ndarray:
+    """Per axis, the step of the value grid the readings sit on, in the readings' unit.
+
+    A logger writes quantised values: raw counts, or g printed with a fixed number of decimals.
+    No two distinct readings of an axis then differ by less than one step, so the smallest
+    difference between distinct values is the step (a reading between two grid values, such as
+    an average of two readings, only makes it smaller). Readings that are not quantised (floats
+    with many digits) give a spacing far below any noise. Only finite values count.
+
+    Parameters
+    ----------
+    acc
+        (N, 3) readings.
+
+    Returns
+    -------
+    np.ndarray
+        (3,) float64, the step per axis; 0 for an axis with fewer than two distinct finite values.
+    """
+    x = np.asarray(acc, dtype=np.float64)
+    out = np.zeros(x.shape[1] if x.ndim == 2 else 0)
+    for k in range(out.shape[0]):
+        values = np.unique(x[:, k][np.isfinite(x[:, k])])
+        if values.size >= 2:
+            out[k] = float(np.diff(values).min())
+    return out
+
+
+def full_scale(acc: np.ndarray, declared: float | None = None, limit_fraction: float = 1.0) -> FullScale:
+    """The range a recording's pile-ups of extreme readings are judged against.
+
+    A sensor clips every axis at its range, so a clipped reading is the largest magnitude the
+    file holds anywhere, and no reading of its axis goes beyond it. With a declared range R
+    (± R), only readings at or beyond ``limit_fraction`` · R can be clipped. Without, the range is
+    inferred from the file: the high end of an axis can be clipped only at the axis' largest
+    reading, and only when that reading is within :data:`FULL_SCALE_TOLERANCE` of the largest
+    magnitude on any axis (likewise the low end). A pile-up well inside
+    the range (a short pose whose quantised noise happens to hit its lowest value a few times)
+    is never clipping. An axis that reads one value over the whole file is stuck: that value
+    counts at both ends, whatever the range.
+
+    Parameters
+    ----------
+    acc
+        (N, 3) readings of the whole recording.
+    declared
+        The declared range, same unit (None: not stated).
+    limit_fraction
+        Fraction of the declared range from which a reading is at its limit.
+
+    Returns
+    -------
+    FullScale
+    """
+    x = np.asarray(acc, dtype=np.float64).reshape(-1, 3)
+    finite = np.isfinite(x)
+    seen = finite.any(axis=0)  # an axis with no finite reading has no range to be at
+    high = np.where(finite, x, -np.inf).max(axis=0, initial=-np.inf)
+    low = np.where(finite, x, np.inf).min(axis=0, initial=np.inf)
+    if declared is not None:
+        lim = limit_fraction * float(declared)
+        hi_bound, lo_bound, source = np.full(3, lim), np.full(3, -lim), "declared"
+    else:
+        scale = float(np.max(np.maximum(np.abs(high), np.abs(low))[seen], initial=0.0))
+        near = (1.0 - FULL_SCALE_TOLERANCE) * scale
+        hi_bound = np.where(seen & (high >= near), high, np.inf)
+        lo_bound = np.where(seen & (-low >= near), low, -np.inf)
+        source = "inferred"
+    stuck = seen & (high == low)
+    hi_bound = np.where(stuck, high, hi_bound)
+    lo_bound = np.where(stuck, low, lo_bound)
+    return FullScale(lo_bound, hi_bound, source)

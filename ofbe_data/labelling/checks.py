@@ -10,7 +10,8 @@ turns their findings into rejections or warnings:
 - :func:`rate_problem` and :func:`rate_step`: a sample rate no accelerometer logs at (a time
   unit mistake), one far from the header's nominal rate, or one that changes mid-file;
 - :func:`clipped_samples`: a pile-up of identical extreme values (clipping at the logger's
-  range) even where the file does not state its range;
+  range) even where the file does not state its range; where the reader gives the recording's
+  full scale (the generic csv: declared or inferred), only a pile-up at it counts;
 - :func:`mount_error_deg`: the angle between a DUT's measured gravity direction and the one the
   declared mount predicts from the reference (``mount-mismatch``).
 """
@@ -291,6 +292,7 @@ def _repeats_dropped(columns: np.ndarray) -> np.ndarray | None:
 
 
 def clipped_samples(x: np.ndarray, min_count: int = 5, min_fraction: float = 0.01,
+                    bounds: tuple[np.ndarray, np.ndarray] | None = None,
                     ) -> tuple[int, int, float, bool] | None:
     """Samples piled up at an axis' extreme value (clipping), as (count, axis, value, whole), or None.
 
@@ -309,6 +311,11 @@ def clipped_samples(x: np.ndarray, min_count: int = 5, min_fraction: float = 0.0
         (N, 3) readings of the stationary segment.
     min_count, min_fraction
         The extreme must occur at least this often (and in this fraction of the samples).
+    bounds
+        Where a reading can be at the range (:class:`~ofbe_data.io.recording.FullScale`'s
+        ``(low, high)``, (3,) each): a pile-up at an axis' high end counts only at ``high[k]`` or
+        above, one at its low end only at ``low[k]`` or below; an axis with neither end there is
+        not examined. None: every extreme counts (the segment alone is judged).
     """
     x = np.asarray(x, dtype=np.float64)
     columns = np.ascontiguousarray(x.T)  # contiguous columns: the counts and extremes are exact either way
@@ -323,15 +330,18 @@ def clipped_samples(x: np.ndarray, min_count: int = 5, min_fraction: float = 0.0
         if col.size == 0:
             continue
         hi, lo = col.max(), col.min()
+        ends = (True, True) if bounds is None else (bool(hi >= bounds[1][k]), bool(lo <= bounds[0][k]))
+        if not any(ends):
+            continue
         if hi == lo and np.isfinite(hi) and n >= need:
             if _others_vary(columns, k):
                 return n, k, float(hi), True
             continue
         if not (np.isfinite(hi) and np.isfinite(lo)) or hi == 0.0 or lo == 0.0:
             # NaN, infinities or a signed zero at an end: np.unique's own grouping decides
-            found = _clipped_by_unique(col, need)
+            found = _clipped_by_unique(col, need, ends)
         else:
-            found = _clipped_at_ends(col, hi, lo, need)
+            found = _clipped_at_ends(col, hi, lo, need, ends)
         if found is None:
             continue
         mostly = found[0] >= MOSTLY_CLIPPED * n and _others_vary(columns, k)
@@ -346,23 +356,28 @@ def _others_vary(columns: np.ndarray, k: int) -> bool:
     return all(np.unique(columns[j]).size >= MIN_CLIP_LEVELS for j in range(columns.shape[0]) if j != k)
 
 
-def _clipped_by_unique(col: np.ndarray, need: float) -> tuple[int, float] | None:
+def _clipped_by_unique(col: np.ndarray, need: float, ends: tuple[bool, bool] = (True, True),
+                       ) -> tuple[int, float] | None:
+    """A pile-up at the high end (when ``ends[0]``), else at the low end (``ends[1]``), of one
+    axis' values, as (count, value), by :func:`np.unique`'s grouping."""
     values, counts = np.unique(col, return_counts=True)
     if values.size < 2:
         return None
-    for end, neighbour in ((-1, -2), (0, 1)):
+    for end, neighbour in ((e, nb) for (e, nb), on in zip(((-1, -2), (0, 1)), ends, strict=True) if on):
         c = int(counts[end])
         if c >= need and c > MIN_CLIP_RATIO * counts[neighbour]:
             return c, float(values[end])
     return None
 
 
-def _clipped_at_ends(col: np.ndarray, hi: float, lo: float, need: float) -> tuple[int, float] | None:
+def _clipped_at_ends(col: np.ndarray, hi: float, lo: float, need: float,
+                     ends: tuple[bool, bool] = (True, True)) -> tuple[int, float] | None:
     """:func:`_clipped_by_unique` for finite values without a zero at either end: the counts
     of the extremes and of the values next to them, without sorting."""
     if hi == lo:
         return None
-    for value, beyond in ((hi, col < hi), (lo, col > lo)):
+    for value, beyond in ((v, b) for (v, b), on in zip(((hi, col < hi), (lo, col > lo)), ends, strict=True)
+                          if on):
         c = int(np.count_nonzero(col == value))
         if c < need:
             continue

@@ -329,7 +329,8 @@ def _quality(rec: Recording, seg: _Segment, params: LabelParams, g: float, min_s
     if n < need:
         return TOO_SHORT, f"{n} stationary samples, at least {need} needed"
     x = rec.acc[seg.start:seg.stop]
-    clipped = clipped_samples(x)
+    scale = rec.full_scale
+    clipped = clipped_samples(x, bounds=None if scale is None else (scale.low, scale.high))
     if clipped is not None:
         count, k, value, whole = clipped
         if whole:

@@ -13,21 +13,29 @@ the data:
    stretch is quiet (imu_tk's initial rest: its median at most ``init_accept_ratio`` times the
    quietest stretch's), otherwise over the quietest stretch of that length; then the median
    over every window at most ``init_accept_ratio`` times that (one stretch scatters, and the
-   quietest of many is biased low).
+   quietest of many is biased low). A quantised output whose noise is below one step shows no
+   variance there at all: the floor is at least what the output step implies
+   (:func:`quantisation_floor`, the step read from the data's value grid).
 3. **Static intervals** for a threshold ``k · floor``. A window is quiet when its variance is
    at most the threshold and its mean agrees with the means of the windows one window length
    before and after it (:func:`quiet_windows`: slow motion moves the mean long before it
    raises the variance). A sample is static when a quiet window holds it: imu_tk's
    centred-window test with each run widened by half a window, so that a run ends where the
    motion begins, and noise must push a whole window length of consecutive windows over the
-   threshold to split a pose. Each run loses ``margin_s`` at both ends; what remains must last
-   ``min_pose_s``.
+   threshold to split a pose. A run must last ``min_pose_s`` (in samples, or in its time stamps:
+   samples a link dropped do not shorten a pose, :func:`run_lasts`); it then loses ``margin_s``
+   at both ends.
 4. **Multiplier.** For each candidate ``k`` (imu_tk scans 2 … 10) the pose means are fitted
    with the norm-constrained least squares of :mod:`ofbe_data.labelling.multiposition`; the
    smallest ``k`` whose residual is tied with the smallest residual wins
    (:func:`choose_multiplier`). A threshold that lets handling into a pose moves its mean off
    |A⁻¹(m − b)| = g and raises the residual. A candidate with fewer poses than the fit needs,
    or poses that do not determine it, is not eligible.
+5. **Missed periods.** A still period that the chosen threshold saw as loud throughout (its
+   median variance above it) while a larger multiplier finds it is added, when the fit with it
+   still ties (:func:`~ofbe_data.labelling.pose_search.missed_periods`): a rig vibrating at a
+   level a quiet sensor resolves keeps its poses. Leaving a pose out does not raise the
+   residual, so step 4 alone would drop them.
 
 Everything is plain numpy (cumulative sums, medians, means) and ``fit_poses``, whose start is
 rounded so that its result is the same on every machine: same input, same poses, same bytes.
@@ -42,11 +50,12 @@ import numpy as np
 
 from ofbe_data.core.errors import ConfigError, OfbeError
 from ofbe_data.io.gravity import G0
-from ofbe_data.io.recording import median
+from ofbe_data.io.recording import median, output_steps
 from ofbe_data.labelling.multiposition import BASE_MODELS, MODELS, PoseFit, fit_poses, min_poses
 
 FLOOR_INITIAL = "initial quiet stretch"  #: ``floor_source``: the first ``init_quiet_s`` set the floor
 FLOOR_QUIETEST = "quietest part"  #: ``floor_source``: the quietest stretch set it
+FLOOR_QUANTISATION = "quantisation step"  #: ``floor_source``: the output step set it (quantisation_floor)
 AUTO = "auto"  #: ``PoseParams.model``: ``scale-offset`` where a candidate has poses enough
 MIN_WINDOW = 3  #: fewest samples in a moving window
 MG = G0 / 1000.0  #: 1 mg in m/s² (for messages)
@@ -114,9 +123,11 @@ class PoseParams:
         vibration, a jig settling, drift within a second), so a quiet sensor's own noise
         (an ADXL355 at 0.2 mg) would put every threshold below what its still poses do and
         split or drop them, while a noisy one's (an ADXL345 at 3.5 mg) is far above it. Handling
-        moves the reading by tens of mg, far beyond the raised threshold; a noise-free or
-        coarsely quantised signal works too. Above 0.3 (30 mg, the stationarity check's
-        ceiling) even the quietest part moves, and there is no pose.
+        moves the reading by tens of mg, far beyond the raised threshold; a noise-free signal
+        works too, and a coarsely quantised one through :func:`quantisation_floor`. A rig that
+        vibrates above the raised floor in some poses keeps them through step 5. Above 0.3
+        (30 mg, the stationarity check's ceiling) even the quietest part moves, and there is
+        no pose.
     tie_sigmas
         Residuals within this many standard errors (1/sqrt(2ν) relative, ν degrees of freedom)
         of the smallest are tied; the smallest tied multiplier wins. Past the handling, a higher
@@ -291,6 +302,35 @@ def noise_floor(var: np.ndarray, window: int, fs_hz: float, params: PoseParams) 
     return max(floor, lowest), source
 
 
+def quantisation_floor(acc: np.ndarray) -> float:
+    """The noise floor that a recording's output step implies, (m/s²)²: Σ_a q_a²/4.
+
+    A quantised reading is known to within its step q only. When the noise spans several steps,
+    rounding adds q²/12 per axis to the noise's variance and the quietest stretch measures both.
+    When the noise is below one step, a still output sits on one grid value (variance 0: the
+    quietest stretch shows nothing at all) or toggles between two neighbouring ones, and a
+    toggle at even odds has a variance of q²/4 per axis, the most that a still two-level output
+    shows (a short window: up to q²·n/(4(n − 1)), 0.3·q² in five samples). The floor is
+    therefore at least Σ_a q_a²/4, with the steps inferred from the data's value grid
+    (:func:`~ofbe_data.io.recording.output_steps`), so that a pose whose readings sit on one or
+    two grid values per axis is still at every multiplier the search scans. The bound exceeds
+    the measured floor only where the noise is below about 0.4·q (3·(σ² + q²/12) < 3·q²/4);
+    readings that are not quantised give a negligible one.
+
+    Parameters
+    ----------
+    acc
+        (N, 3) m/s², a recording's readings.
+
+    Returns
+    -------
+    float
+        (m/s²)², the sum over the axes of step²/4.
+    """
+    steps = output_steps(acc)
+    return float(np.sum(steps * steps)) / 4.0
+
+
 def quiet_windows(means: np.ndarray, var: np.ndarray, window: int, threshold_var: float,
                   drift_factor: float) -> np.ndarray:
     """Windows that are quiet: small variance, and a mean that agrees with the windows beside it.
@@ -349,13 +389,41 @@ def static_runs(quiet: np.ndarray, window: int) -> np.ndarray:
     return edges.reshape(-1, 2).astype(np.int64)
 
 
-def _trim_runs(runs: np.ndarray, fs_hz: float, params: PoseParams) -> list[tuple[int, int]]:
+def run_lasts(runs: np.ndarray, t: np.ndarray, fs_hz: float) -> np.ndarray:
+    """How long each run of samples lasts in time, s: from its first sample's time to its last
+    one's, plus one sample period (1/``fs_hz``), as its sample count over the rate gives it
+    without gaps.
+
+    Parameters
+    ----------
+    runs
+        (R, 2) int64 half-open sample ranges, each non-empty.
+    t
+        (N,) s, the sample times.
+    fs_hz
+        Sample rate, Hz (kept and missing samples over the span).
+
+    Returns
+    -------
+    np.ndarray
+        (R,) s.
+    """
+    if runs.shape[0] == 0:
+        return np.zeros(0)
+    return t[runs[:, 1] - 1] - t[runs[:, 0]] + 1.0 / fs_hz
+
+
+def _trim_runs(runs: np.ndarray, fs_hz: float, params: PoseParams,
+               t: np.ndarray | None = None) -> list[tuple[int, int]]:
     """Keep the (R, 2) runs that stay still ``min_pose_s`` long, and trim ``margin_s`` from both
     ends of each (at least a quarter of the run is kept).
 
     The minimum is the length of the still run, as a person timing the pose would measure it
     (methods.md §8: a minimum pose length, and a margin trimmed at both ends); the margin only
-    keeps the settling after set-down and the start of the next turn out of the mean.
+    keeps the settling after set-down and the start of the next turn out of the mean. A run
+    lasts ``min_pose_s`` when it holds that many seconds of samples or, with the sample times
+    ``t``, when its time stamps span it (:func:`run_lasts`): samples a logger dropped inside a
+    still pose (a radio link's gaps) do not shorten the pose.
 
     Returns half-open sample ranges, in the order given.
     """
@@ -364,13 +432,17 @@ def _trim_runs(runs: np.ndarray, fs_hz: float, params: PoseParams) -> list[tuple
     margin = np.minimum(int(round(params.margin_s * fs_hz)), (length * 3) // 8)
     starts, stops = runs[:, 0] + margin, runs[:, 1] - margin
     keep = length >= shortest
+    if t is not None and not keep.all():
+        keep |= (length >= 2) & (run_lasts(runs, t, fs_hz) >= params.min_pose_s)
     return [(int(a), int(b)) for a, b in zip(starts[keep], stops[keep], strict=True)]
 
 
 def intervals(means: np.ndarray, var: np.ndarray, window: int, threshold_var: float, fs_hz: float,
-               params: PoseParams) -> list[tuple[int, int]]:
+              params: PoseParams, t: np.ndarray | None = None) -> list[tuple[int, int]]:
+    """Static intervals for one threshold from the moving statistics (:func:`detect_static`'s
+    steps; ``t``, s, lets a pose's time span count, :func:`_trim_runs`)."""
     quiet = quiet_windows(means, var, window, threshold_var, params.drift_factor)
-    return _trim_runs(static_runs(quiet, window), fs_hz, params)
+    return _trim_runs(static_runs(quiet, window), fs_hz, params, t)
 
 
 def detect_static(acc: np.ndarray, fs_hz: float, threshold_var: float,
@@ -484,6 +556,25 @@ def choose_multiplier(residuals: dict[float, float], dofs: dict[float, int],
     valid = {k: r for k, r in residuals.items() if math.isfinite(r)}
     if not valid:
         return None
-    best = min(valid, key=lambda k: (valid[k], k))
-    limit = valid[best] * (1.0 + tie_sigmas / math.sqrt(2.0 * dofs[best]))
+    limit = tie_limit(residuals, dofs, tie_sigmas)
     return min(k for k, r in valid.items() if r <= limit)
+
+
+def tie_limit(residuals: dict[float, float], dofs: dict[float, int], tie_sigmas: float) -> float:
+    """The largest residual that ties with the smallest finite one (:func:`choose_multiplier`).
+
+    Parameters
+    ----------
+    residuals, dofs, tie_sigmas
+        As :func:`choose_multiplier` takes them.
+
+    Returns
+    -------
+    float
+        m/s², the smallest residual times (1 + ``tie_sigmas``/sqrt(2ν)); NaN when none is finite.
+    """
+    valid = {k: r for k, r in residuals.items() if math.isfinite(r)}
+    if not valid:
+        return math.nan
+    best = min(valid, key=lambda k: (valid[k], k))
+    return valid[best] * (1.0 + tie_sigmas / math.sqrt(2.0 * dofs[best]))

@@ -48,8 +48,8 @@ def test_the_files_banner_gives_model_and_range(tmp_path, capsys) -> None:
     rows = "".join(f"{i * 10},{a[0]:.4f},{a[1]:.4f},{a[2]:.4f}\n" for i, a in enumerate(acc))
     folder = tmp_path / "s1"
     folder.mkdir()
-    (folder / "rec.csv").write_text("# ADXL345 on an Arduino Uno, range +/-4g, ODR 100 Hz\nt_ms,ax_g,ay_g,az_g\n"
-                                    + rows)
+    banner = "# ADXL345 on an Arduino Uno, range +/-4g, ODR 100 Hz\n"
+    (folder / "rec.csv").write_text(banner + "t_ms,ax_g,ay_g,az_g\n" + rows)
     assert main(["init", str(folder)]) == 0
     out = capsys.readouterr().out
     assert "line 1: '# ADXL345 on an Arduino Uno, range +/-4g, ODR 100 Hz'" in out

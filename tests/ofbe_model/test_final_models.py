@@ -327,6 +327,6 @@ def test_a_bare_generic_csv_is_named_once_with_the_way_to_read_it(deployed, tmp_
     assert predict_main([str(folder / PRIOR_NAME), str(bare), "--window-length", str(T)]) == 1
     err = [line for line in capsys.readouterr().err.splitlines() if "error:" in line]
     assert err == [f"ofbe-predict: error: {bare}: expected a '# ofbe-logger' header line, found none in the "
-                   "file; a bare file is read as ofbe-logger or mscip-csv; for any other file (a generic csv, "
-                   "another logger's format) make its folder a session with `ofbe-session init FOLDER` and "
-                   "pass the folder"]
+                   "file; a bare file is read as ofbe-logger or mscip-csv; for any other file (a generic "
+                   "csv, another logger's format) make its folder a session with `ofbe-session init "
+                   "FOLDER` and pass the folder"]

@@ -14,6 +14,13 @@ Time comes from the ``t`` column in ``time_unit`` (``samples``: an index over
 ``sample_rate_hz`` (a skipped line leaves a one-sample gap). Spacing is reported, never
 resampled. Accelerations become m/s² (``counts``: (value − zero_counts) / lsb_per_g · g0
 per axis). An optional temperature column goes to ``extra[TEMPERATURE]`` in °C.
+
+Saturation is judged against the range: with ``range_g``, a reading at or beyond
+:data:`SATURATION_FRACTION` of it is saturated, and the recording's
+:class:`~ofbe_data.io.recording.FullScale` (what a pile-up of identical extreme readings is
+compared with) is that limit; without, the full scale is inferred from the file's own extremes
+(:func:`~ofbe_data.io.recording.full_scale`). A pile-up of quantised readings well inside the
+range is never saturation.
 """
 
 from __future__ import annotations
@@ -41,7 +48,15 @@ from ofbe_data.io.formats.filebytes import read_file_bytes
 from ofbe_data.io.formats.writing import _assemble, _csv_body, fixed_point
 from ofbe_data.io.gravity import G0
 from ofbe_data.io.manifest import WHITESPACE, CsvMapping, DeviceSpec
-from ofbe_data.io.recording import GYRO, TEMPERATURE, ReadDiagnostics, Recording, SkippedLine, median
+from ofbe_data.io.recording import (
+    GYRO,
+    TEMPERATURE,
+    ReadDiagnostics,
+    Recording,
+    SkippedLine,
+    full_scale,
+    median,
+)
 
 _TIME_SCALE = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 _ACC_SCALE = {"m/s2": 1.0, "g": G0, "mg": G0 / 1000.0}
@@ -310,8 +325,11 @@ def read_generic_csv(path: str | Path, mapping: CsvMapping, device: str | None =
     v = body.values
     acc = _acc(v, mapping, keys)
     saturated = np.zeros(t.shape[0], dtype=bool)
+    declared = None if mapping.range_g is None else mapping.range_g * G0
     if mapping.range_g is not None:
         saturated = np.any(np.abs(acc) >= SATURATION_FRACTION * mapping.range_g * G0, axis=1)
+    # what a pile-up of extreme readings is judged against: the declared range, else the file's own
+    judged_against = full_scale(acc, declared, SATURATION_FRACTION)
     extra: dict[str, np.ndarray] = {}
     if "temperature" in keys:
         extra[TEMPERATURE] = _celsius(v[keys["temperature"]], mapping.temperature_unit)
@@ -328,7 +346,8 @@ def read_generic_csv(path: str | Path, mapping: CsvMapping, device: str | None =
     start = None
     if "t" in keys and mapping.time_unit != "samples" and EPOCH_RANGE_S[0] <= t[0] <= EPOCH_RANGE_S[1]:
         start = datetime.fromtimestamp(float(t[0]), UTC)
-    return Recording(path, "csv", t, acc, saturated, body.lines, start, rate, header, diag, extra)
+    return Recording(path, "csv", t, acc, saturated, body.lines, start, rate, header, diag, extra,
+                     judged_against)
 
 
 # --------------------------------------------------------------------------- writing
