@@ -65,7 +65,7 @@ from ofbe_data.io.yamlio import YamlDocument
 from ofbe_data.labelling.batch import UsageError, expand_sessions, skipped_folders
 from ofbe_data.labelling.checks import MAX_LEVEL_TILT_DEG
 from ofbe_data.labelling.labels import SessionLabels, label_params_from, label_session, read_label_section
-from ofbe_data.labelling.next_pose import report_lines
+from ofbe_data.labelling.next_pose import labelled_fit, report_lines
 
 PROG = "ofbe-session"
 REFERENCE_FORMATS = ("mscip-csv", "mscip-bin")
@@ -371,8 +371,9 @@ def _file_lines(m: SessionManifest, rid: str, dev: str, rec: Recording, labels: 
 
 
 def _next_pose_lines(m: SessionManifest, labels: SessionLabels, params: Any) -> list[str]:
-    """Per DUT with labelled poses: the full model's expected SEs from its poses and the next
-    orientations to record (methods.md §8, :func:`ofbe_data.labelling.next_pose.report_lines`)."""
+    """Per DUT with labelled poses: the model the label writes with its standard errors and why
+    (the label's own columns, so that check and label agree), and the next orientations to record
+    (methods.md §8, :func:`ofbe_data.labelling.next_pose.report_lines`)."""
     out: list[str] = []
     for dev in m.duts:
         rows = [r for r in labels.rows if r["device"] == dev.id]
@@ -383,7 +384,8 @@ def _next_pose_lines(m: SessionManifest, labels: SessionLabels, params: Any) -> 
         with warnings.catch_warnings(), np.errstate(all="ignore"):
             warnings.simplefilter("ignore")
             out += report_lines(dev.id, means, m.g_local, rms,
-                                getattr(params, "multi_position_max_condition", 1000.0))
+                                getattr(params, "multi_position_max_condition", 1000.0),
+                                fitted=labelled_fit(rows[0]))
     return out
 
 

@@ -9,7 +9,7 @@ its non-orthogonality is significant (:func:`wald_test`).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.stats import chi2
@@ -28,6 +28,12 @@ from ofbe_data.labelling.multiposition import (
     has_temperature,
     min_poses,
     parameter_names,
+)
+from ofbe_data.labelling.pose_errors import (
+    PoseNoise,
+    missing_names,
+    norm_fit_errors,
+    prior_missing_covariance,
 )
 from ofbe_data.labelling.six_faces import face_tilt_deg, fit_six_faces, six_faces
 
@@ -80,7 +86,7 @@ class ModelChoice:
 
 def choose_fit(means: np.ndarray, g: float, model: str = "auto", max_condition: float = 1000.0,
                alpha: float = 0.05, temperatures: np.ndarray | None = None,
-               weights: np.ndarray | None = None) -> ModelChoice:
+               weights: np.ndarray | None = None, noise: PoseNoise | None = None) -> ModelChoice:
     """Fit the richest model of the ladder the poses support, or the one forced.
 
     ``auto`` starts from ``offset`` and moves to each richer model (``scale-offset``, then
@@ -91,8 +97,12 @@ def choose_fit(means: np.ndarray, g: float, model: str = "auto", max_condition: 
     otherwise pass for noise and hide the map) and kept up the ladder when significant, or
     tried last on top of the chosen model, by the same rules. Where the norms do not determine
     ``full`` (poses on the six faces only), :func:`fit_six_faces` is tried instead and used when
-    its non-orthogonality angles differ from zero beyond noise (:func:`wald_test`, p < ``alpha``);
-    a forced ``full`` takes it whenever it is determined.
+    its non-orthogonality angles differ from zero beyond its errors, placement included
+    (:func:`wald_test`, p < ``alpha``); a forced ``full`` takes it whenever it is determined.
+    Forced or chosen, an ``offset`` model is written only when an unseen scale error cannot move
+    it by more than :data:`MAX_SCALE_LEAK_MG` (:func:`scale_leak_mg`). The chosen fit's
+    covariance is that of :mod:`ofbe_data.labelling.pose_errors`, and its reason ends with the
+    error model's terms.
 
     Parameters
     ----------
@@ -110,23 +120,19 @@ def choose_fit(means: np.ndarray, g: float, model: str = "auto", max_condition: 
         (K,) °C per pose, or None.
     weights
         (K,) samples per pose (the six-face fit uses each face's longest pose), or None.
+    noise
+        The poses' white noise and clusters (:func:`ofbe_data.labelling.pose_errors.pose_noise`),
+        or None: unknown, every pose alone.
 
     Returns
     -------
     ModelChoice
     """
     m = _check_means(means)
+    noise = PoseNoise.independent(m.shape[0]) if noise is None else noise
     if model != "auto":
-        fit = fit_poses(m, g, model, max_condition, temperatures)
-        why = "forced by label.fit_model" if fit.determined else fit.reason
-        if not fit.determined and model == "full":
-            faces = fit_six_faces(m, g, weights)
-            if faces.determined:
-                words = _six_face_words(m, g, weights)
-                return ModelChoice(faces, f"full: forced by label.fit_model; {words} (the norms alone: "
-                                          f"{fit.reason})")
-            why += f"; six-face fit: {faces.reason}"
-        return ModelChoice(fit, f"{model}: {why}")
+        fit, reason = _forced(m, g, model, max_condition, temperatures, weights, noise)
+        return _finish(m, g, fit, reason, max_condition, temperatures, weights, noise)
     chosen = fit_poses(m, g, "offset", max_condition)
     notes = [f"{m.shape[0]} poses"]
     if not chosen.determined:
@@ -144,7 +150,7 @@ def choose_fit(means: np.ndarray, g: float, model: str = "auto", max_condition: 
         verdict, richer = _try_richer(m, g, chosen, candidate + suffix, max_condition, alpha,
                                       temps if suffix else None)
         if richer is chosen and candidate + suffix == "full" and "not fitted" in verdict:
-            verdict, richer = _try_six_faces(m, g, chosen, alpha, weights, verdict)
+            verdict, richer = _try_six_faces(m, g, chosen, alpha, weights, verdict, noise)
         chosen = richer
         notes.append(verdict)
     if span >= MIN_TEMPERATURE_SPAN_C and not suffix:
@@ -152,6 +158,29 @@ def choose_fit(means: np.ndarray, g: float, model: str = "auto", max_condition: 
         notes.append(verdict)
     elif np.isfinite(span) and span < MIN_TEMPERATURE_SPAN_C:
         notes.append(f"no temperature slope: the poses span {span:.1f} °C, {MIN_TEMPERATURE_SPAN_C:g} needed")
+    return _finish(m, g, chosen, f"{chosen.model}: " + "; ".join(notes), max_condition, temperatures, weights,
+                   noise)
+
+
+def _forced(m: np.ndarray, g: float, model: str, max_condition: float, temperatures: np.ndarray | None,
+            weights: np.ndarray | None, noise: PoseNoise) -> tuple[PoseFit, str]:
+    """The forced model's fit and reason (the six-face fit where the norms cannot fit ``full``)."""
+    fit = fit_poses(m, g, model, max_condition, temperatures)
+    why = "forced by label.fit_model" if fit.determined else fit.reason
+    if not fit.determined and model == "full":
+        faces = fit_six_faces(m, g, weights, noise)
+        if faces.determined:
+            words = _six_face_words(m, g, weights)
+            return faces, f"full: forced by label.fit_model; {words} (the norms alone: {fit.reason})"
+        why += f"; six-face fit: {faces.reason}"
+    return fit, f"{model}: {why}"
+
+
+def _finish(m: np.ndarray, g: float, chosen: PoseFit, reason: str, max_condition: float,
+            temperatures: np.ndarray | None, weights: np.ndarray | None, noise: PoseNoise) -> ModelChoice:
+    """The determination guard every written model passes, then the error model's covariance."""
+    if not chosen.determined:
+        return ModelChoice(chosen, reason)
     if base_model(chosen.model) == "offset":
         leak = scale_leak_mg(chosen, g)
         if leak > MAX_SCALE_LEAK_MG:
@@ -161,8 +190,55 @@ def choose_fit(means: np.ndarray, g: float, model: str = "auto", max_condition: 
                    f"opposite?); record the opposite faces, or {min_poses('scale-offset')} poses or more "
                    "for the scale-offset model")
             undetermined = _nan_fit(chosen.model, m.shape[0], chosen.residual_rms, chosen.condition, why)
-            return ModelChoice(undetermined, f"{chosen.model}: " + "; ".join([*notes, why]))
-    return ModelChoice(chosen, f"{chosen.model}: " + "; ".join(notes))
+            return ModelChoice(undetermined, f"{reason}; {why}")
+    words = ""
+    if chosen.error_model is None:
+        temps = temperatures if has_temperature(chosen.model) else None
+        missing, words = _missing_covariance(m, g, chosen, max_condition, temps, weights, noise)
+        covariance, terms = norm_fit_errors(chosen, m, g, noise, temps, missing)
+        chosen = replace(chosen, covariance=covariance, error_model=terms)
+    assert chosen.error_model is not None
+    return ModelChoice(chosen, f"{reason}; {chosen.error_model.words()}{words}")
+
+
+def _missing_covariance(m: np.ndarray, g: float, chosen: PoseFit, max_condition: float,
+                        temperatures: np.ndarray | None, weights: np.ndarray | None,
+                        noise: PoseNoise) -> tuple[np.ndarray | None, str]:
+    """Covariance of the map parameters ``chosen`` leaves out (:func:`missing_names` order), from the
+    richest fit that determines them (the norms' ``full`` or ``scale-offset``, or the six-face
+    fit for the angles), else the sensor model's; and a clause saying which."""
+    names = missing_names(chosen.model)
+    if not names:
+        return None, ""
+    cov = prior_missing_covariance(names)
+    suffix = TEMPERATURE if has_temperature(chosen.model) else ""
+    found: list[str] = []
+    for model in ("full", "scale-offset"):
+        have = [n for n in names if n in parameter_names(model)]
+        fit = fit_poses(m, g, model + suffix, max_condition, temperatures) if have else None
+        if fit is not None and fit.determined:
+            rich_cov, _ = norm_fit_errors(fit, m, g, noise, temperatures)
+            _insert(cov, names, have, rich_cov, parameter_names(fit.model))
+            found = have
+            break
+    angles = [n for n in names if n.startswith("imutk_mis_") and n not in found]
+    if angles:
+        faces = fit_six_faces(m, g, weights, noise)
+        if faces.determined:
+            _insert(cov, names, angles, faces.covariance, parameter_names("full"))
+            found += angles
+    assumed = [n for n in names if n not in found]
+    what = ", ".join(sorted({"scales" if n.startswith("imutk_s_") else "angles" for n in names}))
+    source = ("the sensor model's" if assumed and not found else "the richer fits'" if not assumed
+              else "partly assumed")
+    return cov, f", and the leak of the {what} it leaves out ({source} uncertainty)"
+
+
+def _insert(cov: np.ndarray, names: list[str], have: list[str], source: np.ndarray, order: list[str]) -> None:
+    """Put ``source``'s block of the parameters ``have`` (``order`` indexes ``source``) into ``cov``."""
+    i = [names.index(n) for n in have]
+    j = [order.index(n) for n in have]
+    cov[np.ix_(i, i)] = source[np.ix_(j, j)]
 
 
 SCALE_ERROR_PRIOR = 0.02
@@ -197,9 +273,9 @@ def _six_face_words(means: np.ndarray, g: float, weights: np.ndarray | None) -> 
 
 
 def _try_six_faces(means: np.ndarray, g: float, chosen: PoseFit, alpha: float, weights: np.ndarray | None,
-                   verdict: str) -> tuple[str, PoseFit]:
+                   verdict: str, noise: PoseNoise) -> tuple[str, PoseFit]:
     """Whether the six-face ``full`` fit replaces ``chosen`` where the norms cannot fit it."""
-    faces = fit_six_faces(means, g, weights)
+    faces = fit_six_faces(means, g, weights, noise)
     if not faces.determined:
         return f"{verdict}; six-face fit not used: {faces.reason}", chosen
     stat, p_value = wald_test(faces, [f"imutk_mis_{n}" for n in ANGLE_NAMES])

@@ -42,6 +42,7 @@ from ofbe_data.labelling.multiposition import (
     min_poses,
     parameter_names,
 )
+from ofbe_data.labelling.pose_errors import pose_noise
 from ofbe_data.labelling.pose_search import direction_groups, find_session_poses
 from ofbe_data.labelling.poses import NoPosesError
 
@@ -166,14 +167,19 @@ def _fit_device(out: SessionLabels, dev: DeviceSpec, rows: list[dict[str, Any]],
     Every pose enters the fit as it is, as in imu_tk: averaging the means of poses in nearly
     one direction would put a point inside the ellipsoid (two directions 2° apart average to
     a norm 1.5e-4 short, 0.15 mg), and a face held twice is two measurements of one direction,
-    which the residual's degrees of freedom then count.
+    which the residual's degrees of freedom then count. The standard errors know each pose's
+    white noise (its samples' variance over their number) and which poses share one placement
+    (consecutive in a recording, one direction), :func:`~ofbe_data.labelling.pose_errors.pose_noise`.
     """
     g = out.manifest.g_local
     means = np.array([r["_mean"] for r in rows])
     temps = _temperatures(rows)
     groups = direction_groups(means)
+    n_samples = np.array([r["n_samples"] for r in rows], dtype=np.float64)
+    noise = pose_noise(np.array([[r[f"std_{a}"] for a in "xyz"] for r in rows], dtype=np.float64), n_samples,
+                       [str(r["recording"]) for r in rows], means)
     choice = choose_fit(means, g, params.fit_model, params.multi_position_max_condition, params.fit_alpha,
-                        temps, np.array([r["n_samples"] for r in rows], dtype=np.float64))
+                        temps, n_samples, noise)
     fit = choice.fit
     if not fit.determined:
         need = min_poses("offset" if params.fit_model == "auto" else params.fit_model)

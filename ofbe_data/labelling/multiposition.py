@@ -29,20 +29,26 @@ Six square faces
     calibration does, and :mod:`ofbe_data.labelling.ladder` chooses among the fits.
 
 Uncertainty
-    Every fitted parameter's standard error comes from the residuals and the Jacobian at the
-    solution: cov = σ̂²·(JᵀJ)⁻¹ with σ̂² = Σ r_k² / (K − P). A model is fitted only with at
-    least one pose more than it has unknowns, so that σ̂ exists (``dof`` ≥ 1); with few
-    degrees of freedom the normalised errors follow Student's t with ``dof`` degrees.
+    :func:`fit_poses` alone gives cov = σ̂²·(JᵀJ)⁻¹ with σ̂² = Σ r_k² / (K − P) (every pose
+    independent, one noise level). The labels use :mod:`ofbe_data.labelling.pose_errors`
+    instead (the ladder, :func:`ofbe_data.labelling.ladder.choose_fit`): each pose's white noise
+    as measured, a pose-to-pose error shared by the poses of one placement and estimated from
+    the residuals the full model cannot explain, and the six faces' placement. A model is
+    fitted only with at least one pose more than it has unknowns (``dof`` ≥ 1).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.optimize import least_squares
 
 from ofbe_data.labelling.conventions import ANGLE_NAMES, imutk_matrix, matrix_from_imutk
+
+if TYPE_CHECKING:
+    from ofbe_data.labelling.pose_errors import ErrorModel
 
 BASE_MODELS: dict[str, int] = {"offset": 3, "scale-offset": 6, "full": 9}
 """The ladder's models and their number of unknowns, simplest first."""
@@ -108,6 +114,9 @@ class PoseFit:
         (3, 3) standard errors of ``matrix``'s entries where the fit gives them directly (the
         six-face fit's A is general, not a function of ``params``); None: derive them from
         ``params`` and ``covariance``.
+    error_model
+        The terms of :mod:`ofbe_data.labelling.pose_errors` behind ``covariance``; None: the
+        plain σ̂²·(JᵀJ)⁻¹ (every pose alone, white noise of one variance).
     """
 
     model: str
@@ -126,6 +135,7 @@ class PoseFit:
     reason: str
     how: str = "norms"
     matrix_se: np.ndarray | None = None
+    error_model: ErrorModel | None = None
 
     @property
     def scale(self) -> np.ndarray:

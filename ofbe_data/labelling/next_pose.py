@@ -16,6 +16,10 @@ fills the missing directions of parameter space first); once determined it minim
 largest expected standard error (minimax), each error expressed in m/s² (offsets as they
 are, scales and angles times g: the specific-force error each causes at 1 g).
 
+What the poses determine, and the standard errors, are never predicted here: ``check`` prints
+the label's own (:func:`report_lines`, :class:`LabelledFit`), so that ``check`` and
+``ofbe-label`` say the same thing about the same poses. The norms' expectation only plans.
+
 All functions are pure and deterministic: ties are broken by the fixed candidate order of
 :func:`cube_directions`.
 """
@@ -28,6 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ofbe_data.labelling.ladder import choose_fit
 from ofbe_data.labelling.multiposition import (
     BASE_MODELS,
     fit_poses,
@@ -432,9 +437,66 @@ def noise_level(residual_rms: float | None) -> float:
     return value if math.isfinite(value) and value > 0 else DEFAULT_SIGMA
 
 
+@dataclass(frozen=True)
+class LabelledFit:
+    """What the label writes for a device's poses (the ladder's choice, :func:`labelled_fit`).
+
+    Attributes
+    ----------
+    model
+        ``fit_model`` (``offset``, ``scale-offset``, ``full``, …; empty when not labelled).
+    reason
+        ``fit_model_reason``: what the poses determine and why.
+    se
+        (9,) standard errors of ``offset_*`` (m/s²), ``imutk_s_*`` and ``imutk_mis_*`` (rad);
+        NaN where the model does not fit the parameter.
+    """
+
+    model: str
+    reason: str
+    se: np.ndarray
+
+
+def labelled_fit(row: dict[str, object]) -> LabelledFit:
+    """:class:`LabelledFit` from one label row of a multi-position session."""
+    se = []
+    for name in parameter_names("full"):
+        value = row.get(name + "_se")
+        se.append(float(value) if isinstance(value, int | float) else float("nan"))
+    return LabelledFit(str(row.get("fit_model") or ""), str(row.get("fit_model_reason") or ""), np.array(se))
+
+
+def ladder_fit(means: np.ndarray, g: float, max_condition: float = 1000.0) -> LabelledFit:
+    """:class:`LabelledFit` of the ladder's ``auto`` choice for poses without a label (no sample
+    statistics: every pose alone)."""
+    choice = choose_fit(_means(means), g, "auto", max_condition)
+    se = np.full(9, np.nan)
+    if choice.fit.determined:
+        order = parameter_names("full")
+        for name, value in zip(parameter_names(choice.fit.model), np.sqrt(np.diag(choice.fit.covariance)),
+                               strict=False):
+            if name in order:
+                se[order.index(name)] = value
+    return LabelledFit(choice.fit.model if choice.fit.determined else "", choice.reason, se)
+
+
+def fitted_se_text(se: np.ndarray) -> str:
+    """Standard errors as :func:`readable_se` writes them, a group the model does not fit as
+    ``… not fitted``."""
+    se = np.asarray(se, dtype=np.float64)
+    groups = readable_se(np.where(np.isnan(se), 0.0, se))
+    names = ("offsets", "scales", "angles")
+    return "; ".join(text if not np.all(np.isnan(se[3 * i:3 * i + 3])) else f"{names[i]} not fitted"
+                     for i, text in enumerate(groups))
+
+
 def report_lines(device: str, means: np.ndarray, g: float, residual_rms: float | None,
-                 max_condition: float = 1000.0, n: int = 3) -> list[str]:
+                 max_condition: float = 1000.0, n: int = 3, fitted: LabelledFit | None = None) -> list[str]:
     """What ``ofbe-session check`` prints for one device of a multi-position session.
+
+    The determination and the standard errors are the label's (``fitted``, or the ladder's
+    ``auto`` choice when None), so that ``check`` and ``ofbe-label`` say the same thing about
+    the same poses; the norms' expectation of the ``full`` model only plans the next poses.
 
     Parameters
     ----------
@@ -445,38 +507,38 @@ def report_lines(device: str, means: np.ndarray, g: float, residual_rms: float |
     g
         m/s², local gravity magnitude.
     residual_rms
-        m/s², the device's pose-fit residual rms (σ; see :func:`noise_level`).
+        m/s², the device's pose-fit residual rms (σ of the planning; see :func:`noise_level`).
     max_condition
         Largest condition of a fit used as the linearisation point.
     n
         How many next poses to suggest.
+    fitted
+        The label's fit (:func:`labelled_fit`), or None.
 
     Returns
     -------
     list of str
-        The expected SE line, a line naming the undetermined parameters when the full model
-        is not determined, and the next-poses line.
+        The label's model with its standard errors, the ladder's reason, and the next-poses line.
     """
     m = _means(means)
+    fit = ladder_fit(m, g, max_condition) if fitted is None else fitted
     sigma = noise_level(residual_rms)
-    x, source = linearisation_point(m, g, max_condition)
-    e = expectation_from_jacobian(pose_jacobian(m, g, x), sigma)
-    names = parameter_names("full")
-    at = f"the {source} fit" if source != "sphere centre" else "the sphere centre, A = I"
-    out = [f"{device}: expected SE of the full model from {m.shape[0]} poses (σ {sigma:.3g} m/s², "
-           f"linearised at {at}): {'; '.join(readable_se(e.se))}"]
-    if not e.determined:
-        which = ", ".join(nm for nm, u in zip(names, e.undetermined, strict=True) if u)
-        out.append(f"{device}: the full model is not determined by these poses (condition of JᵀJ "
-                   f"{e.condition:.3g} > {SINGULAR_CONDITION:.0e}): undetermined (inf): {which or 'none'}")
-    now = float(np.max(se_in_mps2(e.se, g))) if e.determined else float("inf")
+    if fit.model:
+        out = [f"{device}: the label fits {fit.model} from {m.shape[0]} poses, standard errors "
+               f"{fitted_se_text(fit.se)}"]
+    else:
+        out = [f"{device}: the label fits no model from {m.shape[0]} poses"]
+    out.append(f"{device}: why: {fit.reason}")
+    x, _ = linearisation_point(m, g, max_condition)
+    full = fit.model.removesuffix("+temperature") == "full"
+    now = float(np.max(se_in_mps2(fit.se, g))) if full and np.all(np.isfinite(fit.se)) else float("inf")
     picks = next_poses(m, g, x, sigma, n)
     listed = "; ".join(f"{k + 1}. {describe_direction(u)}" for k, (u, _) in enumerate(picks))
-    after = picks[-1][1] if picks else now
-    each = " (" + ", ".join(_mg(w) for _, w in picks) + " after each)" if len(picks) > 1 else ""
+    after = min(now, picks[-1][1]) if picks else now
+    each = " (" + ", ".join(_mg(w) for _, w in picks) + " after each, by the norms)" if len(picks) > 1 else ""
     out.append(f"{device}: next poses to record (each sensor axis' angle above or below level; an axis "
-               f"pointing up reads +g): {listed}; largest expected SE (offsets, scales × g, angles × g) "
-               f"{_mg(now)} → {_mg(after)} with them{each}")
+               f"pointing up reads +g): {listed}; largest SE of the full model (offsets, scales × g, angles "
+               f"× g) {_mg(now)} → {_mg(after)} with them{each}")
     return out
 
 

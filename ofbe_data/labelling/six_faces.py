@@ -27,7 +27,14 @@ from ofbe_data.labelling.multiposition import (
     _check_means,
     _nan_fit,
     condition_number,
+    residual_jacobian,
     span_condition,
+)
+from ofbe_data.labelling.pose_errors import (
+    PoseNoise,
+    column_space_projector,
+    placement_structure,
+    six_face_errors,
 )
 
 FACE_TOLERANCE_DEG = 15.0
@@ -114,28 +121,74 @@ def face_tilt_deg(faces: np.ndarray, g: float) -> float:
     return float(np.degrees(2.0 * np.max(np.sqrt(np.sum(left * left, axis=1))) / g))
 
 
-def _six_face_params(faces: np.ndarray, g: float) -> np.ndarray:
+def _outputs(means: np.ndarray, index: np.ndarray, g: float) -> dict[str, np.ndarray]:
+    """The six-face fit's outputs from all pose means (K, 3) m/s² and the face poses ``index`` (6,):
+    ``params`` (b, imu_tk's s and angles), ``matrix`` (A row-major), ``left`` (the pair sums'
+    six components across gravity less the other axes' offsets, m/s²) and ``residuals`` (each
+    pose's |A⁻¹(m_k − b)| − g, m/s²)."""
+    faces = means[index]
     b, a = ferraris_solution(faces, g)
     s, angles = imutk_from_matrix(a)
-    return np.concatenate([b, s, angles])
+    left = 0.5 * (faces[0::2] + faces[1::2]) - b
+    v = np.linalg.solve(a, (means - b).T).T
+    return {"params": np.concatenate([b, s, angles]), "matrix": a.ravel(),
+            "left": left[~np.eye(3, dtype=bool)], "residuals": np.sqrt(np.sum(v * v, axis=1)) - g}
 
 
-def fit_six_faces(means: np.ndarray, g: float, weights: np.ndarray | None = None) -> PoseFit:
+def _derivatives(means: np.ndarray, index: np.ndarray, g: float) -> dict[str, np.ndarray]:
+    """Each output of :func:`_outputs` differentiated with respect to the flattened means, (N, 3K):
+    by central differences (step 1e-6·g) in the face poses' coordinates, the only ones b and A
+    depend on, and analytically for every other pose's own residual, ∂r_k/∂m_k = (v_k/|v_k|)ᵀ·A⁻¹
+    with v_k = A⁻¹(m_k − b)."""
+    step = 1e-6 * g
+    base = _outputs(means, index, g)
+    out = {name: np.zeros((value.size, means.size)) for name, value in base.items()}
+    for j in (3 * np.asarray(index)[:, None] + np.arange(3)).ravel():
+        hi, lo = means.copy(), means.copy()
+        hi.flat[j] += step
+        lo.flat[j] -= step
+        up, down = _outputs(hi, index, g), _outputs(lo, index, g)
+        for name in out:
+            out[name][:, j] = (up[name] - down[name]) / (2.0 * step)
+    b, a = ferraris_solution(means[index], g)
+    inverse = np.linalg.inv(a)
+    v = (means - b) @ inverse.T
+    own = (v / np.linalg.norm(v, axis=1, keepdims=True)) @ inverse
+    for k in sorted(set(range(means.shape[0])) - {int(i) for i in index}):
+        out["residuals"][k, 3 * k:3 * k + 3] = own[k]
+    return out
+
+
+def fit_six_faces(means: np.ndarray, g: float, weights: np.ndarray | None = None,
+                  noise: PoseNoise | None = None) -> PoseFit:
     """The ``full`` model from six square cube faces (see the module notes, "Six square faces").
 
     b and A come from :func:`ferraris_solution` on the face poses (:func:`six_faces`); ``params``
-    are imu_tk's b, s and angles of A's triangular part. Every pose's norm residual
-    |A⁻¹ (m_k − b)| − g gives σ̂ with K − 6 degrees of freedom (the six faces fix the twelve
-    unknowns; their own norm residuals are second order), and the covariances follow from
-    the face means' (σ̂² each component): cov(θ) = σ̂²·J·Jᵀ with J = ∂θ/∂(face means),
-    var(A_ij) = σ̂²/(2g²).
+    are imu_tk's b, s and angles of A's triangular part. The covariances follow from the pose
+    means' errors by :mod:`ofbe_data.labelling.pose_errors`: white noise, pose-to-pose error
+    (from the residuals of the poses beyond the faces, projected off everything the full
+    model's norms could explain, or assumed where they cannot tell it) and the faces'
+    placement, which Ferraris' half-differences read as non-orthogonality (from the pair sums'
+    components across gravity). ``residual_rms`` and ``dof`` (K − 6) are those of every
+    pose's norm residual |A⁻¹ (m_k − b)| − g.
+
+    Parameters
+    ----------
+    means
+        (K, 3) m/s², pose means.
+    g
+        m/s².
+    weights
+        (K,) samples per pose (each face's heaviest pose is used), or None.
+    noise
+        The poses' white noise and clusters, or None (unknown, every pose alone).
 
     Returns
     -------
     PoseFit
-        ``how`` :data:`SIX_FACES`; ``determined`` False with the reason when the poses are not
-        six faces, the faces are not square (:data:`SQUARE_TOLERANCE_DEG`), or no pose is left
-        for the residual.
+        ``how`` :data:`SIX_FACES`, ``error_model`` set; ``determined`` False with the reason
+        when the poses are not six faces, the faces are not square
+        (:data:`SQUARE_TOLERANCE_DEG`), or no pose is left for the residual.
     """
     m = _check_means(means)
     g = _check_g(g)
@@ -151,9 +204,8 @@ def fit_six_faces(means: np.ndarray, g: float, weights: np.ndarray | None = None
                                 f"{SQUARE_TOLERANCE_DEG:g}°)"),
                        how=SIX_FACES)
     b, a = ferraris_solution(faces, g)
-    v = np.linalg.solve(a, (m - b).T).T
-    norms = np.sqrt(np.sum(v * v, axis=1))
-    r = norms - g
+    out = _outputs(m, index, g)
+    r = out["residuals"]
     residual_rms = float(np.sqrt(np.mean(r * r)))
     condition = max(span_condition(m), condition_number(a))
     dof = k - 6
@@ -161,16 +213,16 @@ def fit_six_faces(means: np.ndarray, g: float, weights: np.ndarray | None = None
         return replace(_nan_fit("full", k, residual_rms, condition,
                                 "7 poses needed for the six-face fit (the faces and one more), found 6"),
                        how=SIX_FACES)
-    sigma2 = float(np.sum(r * r)) / dof
-    x = _six_face_params(faces, g)
-    step = 1e-6 * g
-    jac = np.empty((x.size, faces.size))
-    for j in range(faces.size):
-        hi, lo = faces.copy(), faces.copy()
-        hi.flat[j] += step
-        lo.flat[j] -= step
-        jac[:, j] = (_six_face_params(hi, g) - _six_face_params(lo, g)) / (2.0 * step)
+    x = out["params"]
+    projector = column_space_projector(residual_jacobian(x, m, np.zeros(k), g, "full"))
+    covs, model = six_face_errors(out, _derivatives(m, index, g), projector,
+                                  placement_structure(m, index, b, g),
+                                  PoseNoise.independent(k) if noise is None else noise,
+                                  g * float(np.radians(SQUARE_TOLERANCE_DEG)) / 2.0)
+    v = np.linalg.solve(a, (m - b).T).T
     nan3 = np.full(3, np.nan)
-    return PoseFit("full", b, a, nan3, float("nan"), x, sigma2 * jac @ jac.T, v / norms[:, None],
-                   residual_rms, condition, k, dof, True, "", how=SIX_FACES,
-                   matrix_se=np.full((3, 3), np.sqrt(sigma2 / 2.0) / g))
+    directions = v / np.linalg.norm(v, axis=1)[:, None]
+    return PoseFit("full", b, a, nan3, float("nan"), x, covs["params"], directions, residual_rms, condition,
+                   k, dof, True, "", how=SIX_FACES,
+                   matrix_se=np.sqrt(np.maximum(np.diag(covs["matrix"]), 0.0)).reshape(3, 3),
+                   error_model=model)

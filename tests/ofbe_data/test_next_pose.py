@@ -1,6 +1,7 @@
 """The next pose to record (methods.md §8): the full model's expected standard errors from the
-poses found, and the cube orientations that determine it or shrink its largest error, also as
-``ofbe-session check`` prints them for a simulated multi-position session.
+poses found, and the cube orientations that determine it or shrink its largest error; and what
+``ofbe-session check`` prints for a simulated multi-position session: the label's own model,
+standard errors and reason, then the next poses.
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ import numpy as np
 import pytest
 
 from ofbe_data.labelling.conventions import matrix_from_imutk
+from ofbe_data.labelling.ladder import choose_fit
 from ofbe_data.labelling.multiposition import fit_poses, parameter_names
 from ofbe_data.labelling.next_pose import (
     MG,
@@ -76,9 +78,14 @@ def test_six_faces_leave_the_full_model_undetermined_and_the_suggestions_fix_it(
     assert undetermined == {"imutk_s_y", "imutk_s_z", "imutk_mis_yz", "imutk_mis_zy", "imutk_mis_zx"}
     assert np.all(np.isfinite(e.se[:4])) and np.all(e.se[:3] < 1e-3)
     assert np.all(np.isinf(np.diag(expected_covariance(means, G, x, sigma=1e-3))[4:]))
+    # check says what the label writes (the ladder's choice: here the six-face fit), never the
+    # norms' "undetermined" for parameters the label fits (issue 33)
     lines = report_lines("dut", means, G, 1e-3)
-    assert any("the full model is not determined by these poses" in line and "imutk_mis_zx" in line
-               for line in lines)
+    choice = choose_fit(means, G)
+    assert lines[0].startswith(f"dut: the label fits {choice.fit.model} from 12 poses, standard errors ")
+    # (noise-free poses: the reason's test statistics are rounding noise, compare its start)
+    assert lines[1].startswith(f"dut: why: {choice.reason.split(';')[0]};")
+    assert "inf" not in lines[0]
 
     picks = next_poses(means, G, x, sigma=1e-3, n=3)
     assert len(picks) == 3
@@ -120,8 +127,9 @@ def test_a_determined_set_is_linearised_at_its_full_fit() -> None:
     np.testing.assert_allclose(x, X_TRUE, atol=3e-3)
     e = expectation_from_jacobian(pose_jacobian(means, G, x), 1e-3)
     assert e.determined and not e.undetermined.any()
-    lines = report_lines("dut", means, G, float("nan"))  # NaN residual: σ = 1 mm/s²
-    assert len(lines) == 2 and "σ 0.001 m/s²" in lines[0] and "linearised at the full fit" in lines[0]
+    lines = report_lines("dut", means, G, float("nan"))  # NaN residual: σ = 1 mm/s² for the planning
+    assert len(lines) == 3 and lines[0].startswith("dut: the label fits full from 20 poses, standard errors")
+    assert "angles not fitted" not in lines[0] and lines[1].startswith("dut: why: full: 20 poses")
     picks = next_poses(means, G, x, 1e-3)
     worst = [w for _, w in picks]
     now = float(np.max(e.se * np.array([1, 1, 1, G, G, G, G, G, G])))
@@ -131,6 +139,7 @@ def test_a_determined_set_is_linearised_at_its_full_fit() -> None:
 def test_check_prints_expected_se_and_next_poses(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     from ofbe_data.cli.session import main
     from ofbe_data.io.manifest import load_manifest
+    from ofbe_data.labelling.labels import label_params_from, label_session
     from ofbe_data.simulator import load_config, simulate_campaign
 
     simulate_campaign(load_config("tiny-multi-position"), tmp_path / "mp", seed=1, jobs=1, progress=False)
@@ -141,14 +150,17 @@ def test_check_prints_expected_se_and_next_poses(tmp_path: Path, capsys: pytest.
     out = capsys.readouterr().out
     lines = out.splitlines()
     summary = next(i for i, line in enumerate(lines) if line.startswith("  → would label"))
+    labels = label_session(folder, label_params_from({"min_samples": 500}, "test"))
     for dev in load_manifest(folder).duts:
-        se = next(i for i, line in enumerate(lines)
-                  if line.startswith(f"  {dev.id}: expected SE of the full model from "))
+        row = next(r for r in labels.rows if r["device"] == dev.id)
+        se = next(i for i, line in enumerate(lines) if line.startswith(f"  {dev.id}: the label fits "))
         nxt = next(i for i, line in enumerate(lines) if line.startswith(f"  {dev.id}: next poses to record"))
         assert se < nxt < summary
-        assert " mg; scale x, y, z " in lines[se] and " ppm; mis yz/zy/zx " in lines[se]
+        assert lines[se].startswith(f"  {dev.id}: the label fits {row['fit_model']} from ")
+        assert f"offset x, y, z {row['offset_x_se'] / MG:.3g}, " in lines[se]  # the label's own numbers
+        assert lines[se + 1] == f"  {dev.id}: why: {row['fit_model_reason']}"
         assert "1. " in lines[nxt] and "3. " in lines[nxt] and " up " in lines[nxt]
-        assert "largest expected SE" in lines[nxt] and " mg with them" in lines[nxt]
+        assert "largest SE of the full model" in lines[nxt] and " mg with them" in lines[nxt]
     assert main(["check", str(folder), "--params", str(params)]) == 0
     assert capsys.readouterr().out == out  # deterministic
     assert MG == pytest.approx(9.80665e-3)
