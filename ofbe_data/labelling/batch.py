@@ -60,7 +60,7 @@ def skipped_folders(paths: Sequence[str | Path]) -> list[Path]:
     """Subfolders of the campaign folders named by ``paths`` that :func:`expand_sessions` passes
     over because they hold no ``session.yaml``, so that a command can say so.
 
-    Folders whose names start with ``_`` or ``.`` (the simulator's ``_truth``, hidden folders)
+    Folders whose names start with ``_`` or ``.`` (the simulator's folder of true values, hidden folders)
     are meant to be passed over and are not listed.
     """
     out: list[Path] = []
