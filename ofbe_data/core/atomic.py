@@ -1,15 +1,24 @@
-"""Write files and folders atomically: to a temporary name beside the target, then rename."""
+"""Write files and folders atomically: to a temporary name beside the target, then rename.
+
+A Ctrl-C may come at any instant: the few steps that must not be cut in two (making a temporary
+file or folder and keeping its name for the clean-up, renaming outputs into place, removing what
+an interrupted run made) run with Ctrl-C held off (:func:`interrupts_deferred`), so that an
+interrupted run leaves whole files and folders or none, and no temporary name behind.
+"""
 
 from __future__ import annotations
 
 import errno
 import os
 import shutil
+import signal
 import stat
 import tempfile
+import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
 
 def _umask() -> int:
@@ -49,6 +58,51 @@ def copy_file(src: str | Path, dst: str | Path) -> None:
         raise
 
 
+_HELD = (signal.SIGINT, signal.SIGTERM)
+"""The signals :func:`interrupts_deferred` holds off where a Python handler takes them: Ctrl-C, and
+the SIGTERM with which a pool stops its workers (:mod:`ofbe_data.core.parallel`)."""
+
+
+@contextmanager
+def interrupts_deferred() -> Iterator[None]:
+    """Hold Ctrl-C (SIGINT) off while the block runs, then deliver it: a Ctrl-C meanwhile raises
+    ``KeyboardInterrupt`` (or whatever the handler in force does) as the block ends, never inside.
+    SIGTERM is held the same way where a Python handler takes it (in a pool's workers).
+
+    SIGINT is also blocked in this thread while the block runs, and a blocked signal stays
+    blocked in a process started from it (the mask survives ``fork`` and ``exec``): a worker
+    process started here cannot be interrupted before it ignores Ctrl-C itself
+    (:func:`ofbe_data.core.parallel._init_worker`). Outside the main thread, or where no Python
+    handler takes the signals (Ctrl-C ignored in a worker), nothing changes.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held = {s: h for s in _HELD if callable(h := signal.getsignal(s))}
+    if not held:
+        yield
+        return
+    caught: list[int] = []
+
+    def hold(signum: int, _frame: Any) -> None:
+        caught.append(signum)
+
+    for s in held:
+        signal.signal(s, hold)
+    try:
+        mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT}) if signal.SIGINT in held else None
+        try:
+            yield
+        finally:
+            if mask is not None:
+                signal.pthread_sigmask(signal.SIG_SETMASK, mask)  # one pending is held now
+    finally:
+        for s, handler in held.items():
+            signal.signal(s, handler)
+        for s in dict.fromkeys(caught):
+            signal.raise_signal(s)  # to the handler in force: KeyboardInterrupt here
+
+
 def write_bytes_atomic(path: str | Path, data: bytes) -> None:
     """Write ``data`` to ``path`` so that readers see either the old file or the new one.
 
@@ -60,19 +114,23 @@ def write_bytes_atomic(path: str | Path, data: bytes) -> None:
         File contents.
     """
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    tmp, fh = None, None
     try:
-        with os.fdopen(fd, "wb") as fh:
+        with interrupts_deferred():  # the temporary file and its name here, or neither
+            fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+            fh = os.fdopen(fd, "wb")
+        with fh:
             fh.write(data)
         _default_mode(Path(tmp), directory=False)
         os.replace(tmp, path)
-    except OSError as exc:
-        Path(tmp).unlink(missing_ok=True)
-        if exc.filename is None:  # a write on the descriptor names no file: name the target
+    except BaseException as exc:
+        if fh is not None:
+            fh.close()
+        if tmp is not None:
+            with interrupts_deferred():
+                Path(tmp).unlink(missing_ok=True)
+        if isinstance(exc, OSError) and exc.filename is None:  # a write on the descriptor names no file
             raise _against(exc, path) from exc
-        raise
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
         raise
 
 
@@ -91,26 +149,32 @@ def atomic_directory(target: str | Path, *, replace: bool = False) -> Iterator[P
     Yields
     ------
     Path
-        The temporary folder to fill. On an exception it is removed and ``target`` is
-        left untouched.
+        The temporary folder to fill. On an exception (Ctrl-C included) it is removed and
+        ``target`` is left untouched; a Ctrl-C while the folder is moved into place (and an
+        old one removed) waits for the move to end, so ``target`` is then whole.
     """
     target = Path(target)
     target.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent))
+    tmp: Path | None = None
     try:
-        _default_mode(tmp, directory=True)
+        with interrupts_deferred():  # the temporary folder and its name here, or neither
+            tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent))
+            _default_mode(tmp, directory=True)
         yield tmp
-        if target.exists():
-            if not replace:
-                raise FileExistsError(target)
-            old = target.with_name(f".{target.name}.old-{os.getpid()}")
-            os.replace(target, old)
-            os.replace(tmp, target)
-            shutil.rmtree(old)
-        else:
-            os.replace(tmp, target)
+        with interrupts_deferred():
+            if target.exists():
+                if not replace:
+                    raise FileExistsError(target)
+                old = target.with_name(f".{target.name}.old-{os.getpid()}")
+                os.replace(target, old)
+                os.replace(tmp, target)
+                shutil.rmtree(old)
+            else:
+                os.replace(tmp, target)
     except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
+        if tmp is not None:
+            with interrupts_deferred():
+                shutil.rmtree(tmp, ignore_errors=True)
         raise
 
 

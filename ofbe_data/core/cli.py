@@ -23,6 +23,7 @@ from types import ModuleType
 from typing import Any
 
 from ofbe_data.core.atomic import is_write_failure
+from ofbe_data.core.entry import EXIT_INTERRUPTED, INTERRUPTED, take_over
 
 EXIT_OK = 0
 """Success (or, for ``ofbe-label``, every session labelled or cleanly rejected)."""
@@ -34,9 +35,6 @@ EXIT_USAGE = 2
 VERBOSE_ENV = "OFBE_VERBOSE"
 """Set to 1 to let TensorFlow's and absl's start-up messages through (``--verbose`` does too)."""
 
-
-EXIT_INTERRUPTED = 130
-"""Stopped by Ctrl-C (128 + SIGINT, as shells report it)."""
 EXIT_IO = 74
 """An output could not be written (a full disk, a quota, an I/O error): sysexits' ``EX_IOERR``."""
 
@@ -87,7 +85,8 @@ def public_path(path: Path) -> Path:
 
 def command(prog: str) -> Callable[[Callable[..., int]], Callable[..., int]]:
     """Decorate a command's ``main``: Ctrl-C prints one line and exits 130, a failed write
-    (:func:`is_write_failure`) one line and 74, no traceback.
+    (:func:`is_write_failure`) one line and 74, no traceback. A Ctrl-C while the command's
+    modules were imported is raised as ``main`` starts (:func:`ofbe_data.core.entry.take_over`).
 
     Files are written atomically everywhere, so an interrupted run leaves whole files or none.
     """
@@ -95,10 +94,10 @@ def command(prog: str) -> Callable[[Callable[..., int]], Callable[..., int]]:
         @functools.wraps(main)
         def run(*args: Any, **kwargs: Any) -> int:
             try:
+                take_over()  # a Ctrl-C held since the command's imports is raised here
                 return main(*args, **kwargs)
             except KeyboardInterrupt:
-                print(f"{prog}: interrupted; files already written are whole, nothing partial is left",
-                      file=sys.stderr)
+                print(f"{prog}: {INTERRUPTED}", file=sys.stderr)
                 return EXIT_INTERRUPTED
             except OSError as exc:  # a write that no command-specific handler caught
                 if not is_write_failure(exc):

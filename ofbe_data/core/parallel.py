@@ -13,6 +13,11 @@ is run again (``retries`` times; the tasks are idempotent) and then reported as 
 ``on_error="raise"`` (the default) the first failure in input order is raised once every task
 is done: the task's own exception, or a :class:`~ofbe_data.core.scheduler.TaskError`; with
 ``on_error="collect"`` each failed item's result is its ``TaskFailure``.
+
+Ctrl-C: the worker processes ignore it (they started with it blocked, and a terminal sends it
+to them too); this process gets ``KeyboardInterrupt`` and stops its workers at once (SIGTERM,
+which ends a task with its clean-up, then SIGKILL after :data:`STOP_S`), never waiting for a
+task to end, before the exception goes on to the caller (whose temporary folder is then removed).
 """
 
 from __future__ import annotations
@@ -22,14 +27,16 @@ import multiprocessing
 import os
 import signal
 import sys
+import time
+import traceback
 from collections.abc import Callable, Iterator, Mapping, Sequence
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
-from concurrent.futures.process import BrokenProcessPool
-from multiprocessing.queues import SimpleQueue
+from multiprocessing import connection
+from multiprocessing.reduction import ForkingPickler
 from typing import Any, Literal, NoReturn, TypeVar, overload
 
 from tqdm import tqdm
 
+from ofbe_data.core.atomic import interrupts_deferred
 from ofbe_data.core.scheduler import (
     DEFAULT_RETRIES,
     PROCESSES,
@@ -46,25 +53,214 @@ __all__ = ["TaskError", "TaskFailure", "iter_ordered", "map_progress"]
 T = TypeVar("T")
 R = TypeVar("R")
 
-_MARKS: SimpleQueue[tuple[int, int]] | None = None
-"""In a pool worker: where it notes (pid, item index) before running an item."""
+STOP_S = 5.0
+"""How long stopping the worker processes waits for them to end (after SIGTERM, and again after
+SIGKILL): an interrupted run never waits longer for a task."""
 
 
-def _init_worker(env: Mapping[str, str], marks: SimpleQueue[tuple[int, int]] | None = None) -> None:
+def _init_worker(env: Mapping[str, str]) -> None:
     """Worker set-up: its environment first (before any library reads it), and Ctrl-C left to
-    the parent, which reports it once (no traceback per worker)."""
-    global _MARKS
+    the parent, which reports it once (no traceback per worker).
+
+    A worker started by :class:`_Pool` starts with SIGINT blocked, so a Ctrl-C before this point
+    is pending, not raised: ignoring the signal discards it, and it is unblocked after.
+    """
     os.environ.update(env)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    _MARKS = marks
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
 
 
-def _marked(fn: Callable[[Any], Any], index: int, item: Any) -> Any:
-    """``fn(item)`` in a pool worker, after noting which item this process runs (so that the
-    parent knows whose task it was when the process dies)."""
-    if _MARKS is not None:
-        _MARKS.put((os.getpid(), index))
-    return fn(item)
+class _Stopped(BaseException):
+    """In a worker: its parent stopped it (SIGTERM) while it ran a task or waited for one."""
+
+
+def _stop(_signum: int, _frame: Any) -> None:
+    raise _Stopped
+
+
+class _RemoteTraceback(Exception):
+    """A task's traceback in its worker, as text: the ``__cause__`` of its exception here."""
+
+    def __str__(self) -> str:
+        return str(self.args[0])
+
+
+def _rebuild(exc: BaseException, tb: str) -> BaseException:
+    exc.__cause__ = _RemoteTraceback(tb)
+    return exc
+
+
+class _Raised:
+    """A task's exception on its way to the parent, with its traceback as text."""
+
+    def __init__(self, exc: BaseException) -> None:
+        self.exc = exc
+        self.tb = "".join(traceback.format_exception(exc))
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return _rebuild, (self.exc, f'\n"""\n{self.tb}"""')
+
+
+def _serve(conn: connection.Connection, env: Mapping[str, str]) -> None:
+    """A worker process: runs each ``(index, pickled (fn, item))`` it receives and sends back
+    ``(index, True, result)`` or ``(index, False, exception)``, until told to stop (None) or its
+    parent is gone. SIGTERM ends the task with its clean-up (``finally``, atomic writes), then
+    the process, by that signal."""
+    _init_worker(env)
+    signal.signal(signal.SIGTERM, _stop)
+    try:
+        while True:
+            try:
+                task = conn.recv()
+            except (EOFError, OSError):  # the parent is gone
+                return
+            if task is None:
+                return
+            index, payload = task
+            try:
+                fn, item = ForkingPickler.loads(payload)
+                reply: tuple[int, bool, Any] = (index, True, fn(item))
+            except _Stopped:
+                raise
+            except BaseException as exc:  # noqa: BLE001 - the parent reports it
+                reply = (index, False, _Raised(exc))
+            del task, payload
+            try:
+                conn.send(reply)
+            except (EOFError, OSError):
+                return
+            except Exception as exc:  # noqa: BLE001 - an unpicklable result or exception
+                what = "result" if reply[1] else f"exception ({failure_reason(reply[2].exc)})"
+                conn.send((index, False, RuntimeError(f"the task's {what} cannot be pickled: {exc}")))
+    except _Stopped:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        os.kill(os.getpid(), signal.SIGTERM)
+
+
+class _Worker:
+    """One worker process of a :class:`_Pool`, the parent's end of its pipe, and the item it runs."""
+
+    def __init__(self, process: Any, conn: connection.Connection) -> None:
+        self.process = process
+        self.conn = conn
+        self.item: int | None = None
+        self.used = False
+
+
+class _Pool:
+    """Up to ``size`` worker processes that this process started and alone owns, each with its
+    pipe: no thread and no lock (``concurrent.futures``' pool has both, and a Ctrl-C in the
+    wrong instant left its shut-down waiting forever), so :meth:`stop` always ends in bounded time.
+
+    Parameters
+    ----------
+    context
+        The ``multiprocessing`` context that starts the workers.
+    env
+        Their environment (:func:`_init_worker`).
+    size
+        How many may run at once.
+    """
+
+    def __init__(self, context: Any, env: Mapping[str, str], size: int) -> None:
+        self.context, self.env, self.size = context, env, size
+        self.workers: list[_Worker] = []
+
+    @property
+    def busy(self) -> list[_Worker]:
+        return [w for w in self.workers if w.item is not None]
+
+    def _start(self) -> _Worker:
+        if self.context.get_start_method() != "fork":
+            # started now, not inside the block below: starting it unblocks SIGINT in this thread
+            from multiprocessing import resource_tracker
+
+            resource_tracker.ensure_running()
+        with interrupts_deferred():  # the worker starts with SIGINT blocked, and is known here
+            ours, theirs = self.context.Pipe()
+            try:
+                process = self.context.Process(target=_serve, args=(theirs, self.env), daemon=False)
+                process.start()
+            except BaseException:
+                ours.close()
+                raise
+            finally:
+                theirs.close()
+            worker = _Worker(process, ours)
+            self.workers.append(worker)
+        return worker
+
+    def run(self, index: int, payload: bytes) -> tuple[bool, bool, int | None]:
+        """Send an item to an idle worker (a new one if none): ``(sent, charged, exit code)``.
+
+        When the worker is gone the item was not sent; a new worker's death is charged to the
+        item (``charged``), an idle one's (since its last task) is not."""
+        idle = [w for w in self.workers if w.item is None]
+        worker = idle[0] if idle else self._start()
+        try:
+            worker.conn.send((index, payload))
+        except OSError:
+            return False, not worker.used, self._reap(worker)
+        worker.item, worker.used = index, True
+        return True, False, None
+
+    def _reap(self, worker: _Worker) -> int | None:
+        """Forget a worker that died (its pipe closed or its process ended); its exit code."""
+        worker.conn.close()
+        worker.process.join(STOP_S)
+        if worker.process.exitcode is None:  # its pipe closed but it lives on: ended here
+            worker.process.kill()
+            worker.process.join(STOP_S)
+        self.workers.remove(worker)
+        return worker.process.exitcode
+
+    def replies(self) -> list[tuple[int, tuple[bool, Any] | None, int | None]]:
+        """Wait until a busy worker answers or dies: ``(item, (ok, value), None)`` per answer,
+        ``(item, None, exit code)`` per death, in item order."""
+        busy = sorted(self.busy, key=lambda w: w.item or 0)
+        ready = set(connection.wait([w.conn for w in busy] + [w.process.sentinel for w in busy]))
+        out: list[tuple[int, tuple[bool, Any] | None, int | None]] = []
+        for w in busy:
+            i = w.item
+            assert i is not None
+            if w.conn in ready:
+                try:
+                    index, ok, value = w.conn.recv()
+                except (EOFError, OSError):  # died
+                    w.item = None
+                    out.append((i, None, self._reap(w)))
+                    continue
+                except Exception as exc:  # noqa: BLE001 - an answer that cannot be unpickled here
+                    index, ok, value = i, False, exc
+                assert index == i, (index, i)
+                w.item = None
+                out.append((i, (ok, value), None))
+            elif w.process.sentinel in ready:  # ended, though something it started holds its pipe
+                w.item = None
+                out.append((i, None, self._reap(w)))
+        return out
+
+    def stop(self, finished: bool) -> None:
+        """End every worker: told to once the run ``finished``; else at once, with SIGTERM (the
+        task ends with its clean-up), then SIGKILL for any still running after :data:`STOP_S`."""
+        with interrupts_deferred():
+            for w in self.workers:
+                if finished:
+                    try:
+                        w.conn.send(None)
+                    except OSError:
+                        pass
+                else:
+                    w.process.terminate()
+            deadline = time.monotonic() + STOP_S
+            for w in self.workers:
+                w.process.join(max(0.0, deadline - time.monotonic()))
+            for w in self.workers:
+                if w.process.exitcode is None:
+                    w.process.kill()
+                    w.process.join(STOP_S)
+                w.conn.close()
+            self.workers.clear()
 
 
 def _verbose() -> bool:
@@ -84,76 +280,56 @@ def _local_outcomes(fn: Callable[[Any], Any], items: Sequence[Any]) -> Iterator[
 def _pool_outcomes(fn: Callable[[Any], Any], items: Sequence[Any], workers: int,
                    worker_env: Mapping[str, str] | None, retries: int,
                    window: Callable[[], int]) -> Iterator[Outcome]:
-    """Every item's :data:`Outcome` from a process pool, as each completes.
+    """Every item's :data:`Outcome` from ``workers`` processes of this call's own, as each completes.
 
-    When a worker process dies the pool breaks: the results already in are kept, the items
-    that did not start are submitted again to a fresh pool, and the item the dead process
-    was running (its exit code tells it from the ones the pool then stopped) is charged one
-    attempt and run again, until it has died ``retries + 1`` times.
+    A worker that dies charges one attempt to the item it was running, which runs again (on a
+    new worker) until it has died ``retries + 1`` times; the other workers go on. When this
+    ends early (an exception here or in the caller, Ctrl-C included, or the caller stops
+    reading), every worker is stopped at once (:meth:`_Pool.stop`) before it goes on.
     """
     context = multiprocessing.get_context("spawn" if worker_env is not None else None)
-    env = dict(worker_env or {})
-    waiting = list(range(len(items)))  # a heap: the items to submit, the next one first
+    pool = _Pool(context, dict(worker_env or {}), workers)
+    waiting = list(range(len(items)))  # a heap: the items to run, the next one first
     deaths: dict[int, int] = {}
-    while waiting:
-        marks: SimpleQueue[tuple[int, int]] = context.SimpleQueue()
-        pool = ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_init_worker,
-                                   initargs=(env, marks))
-        # the pool's pid → process map (kept past a break): the exit codes of its processes
-        processes: dict[int, Any] = getattr(pool, "_processes", {})
-        inflight: dict[Future[Any], int] = {}
-        lost: list[int] = []
-        broken = False
-        try:
-            while (waiting and not broken) or inflight:
-                while waiting and not broken and waiting[0] < window():
-                    try:
-                        inflight[pool.submit(_marked, fn, waiting[0], items[waiting[0]])] = waiting[0]
-                    except BrokenProcessPool:
-                        broken = True
-                    else:
-                        heapq.heappop(waiting)
-                if not inflight:
-                    if broken:
-                        break
+    finished = False
+
+    def died(i: int, code: int | None) -> Outcome | None:
+        deaths[i] = deaths.get(i, 0) + 1
+        if deaths[i] > retries:
+            return i, None, TaskFailure(i, death_reason(deaths[i], code))
+        heapq.heappush(waiting, i)
+        return None
+
+    try:
+        while waiting or pool.busy:
+            while waiting and waiting[0] < window() and len(pool.busy) < pool.size:
+                i = heapq.heappop(waiting)
+                try:
+                    payload = bytes(ForkingPickler.dumps((fn, items[i])))
+                except Exception as exc:  # noqa: BLE001 - an item that cannot be sent, reported as its failure
+                    yield i, None, exc
+                    continue
+                sent, charged, code = pool.run(i, payload)
+                if sent:
+                    continue
+                if not charged:
+                    heapq.heappush(waiting, i)  # an idle worker had died: the item goes to a new one
+                elif (failed := died(i, code)) is not None:
+                    yield failed
+            if not pool.busy:
+                if waiting:
                     raise RuntimeError("map_progress: nothing in flight and items left (window too small)")
-                done, _ = wait(inflight, return_when=FIRST_COMPLETED)
-                for fut in sorted(done, key=inflight.__getitem__):
-                    i = inflight.pop(fut)
-                    exc = fut.exception()
-                    if isinstance(exc, BrokenProcessPool):
-                        lost.append(i)
-                        broken = True
-                    else:
-                        yield (i, None, exc) if exc is not None else (i, fut.result(), None)
-        except BaseException:
-            # Ctrl-C, or the caller stopped: drop the tasks not started, let the running ones finish
-            pool.shutdown(wait=True, cancel_futures=True)
-            marks.close()
-            raise
-        pool.shutdown(wait=True)
-        if not lost:
-            marks.close()
-            continue
-        last: dict[int, int] = {}  # pid → the last item that process started
-        while not marks.empty():
-            pid, i = marks.get()
-            last[pid] = i
-        marks.close()
-        codes = {i: getattr(processes.get(pid), "exitcode", None) for pid, i in last.items() if i in lost}
-        # a process that died ran its last item; the pool stopped the others (SIGTERM) after the
-        # break, and the items they finished but whose results were not read yet go again
-        died = [i for i, c in codes.items() if c is not None and c != -signal.SIGTERM]
-        charged = died or list(codes) or lost
-        again = [i for i in lost if i not in charged]
-        for i in charged:
-            deaths[i] = deaths.get(i, 0) + 1
-            if deaths[i] > retries:
-                yield i, None, TaskFailure(i, death_reason(deaths[i], codes.get(i)))
-            else:
-                again.append(i)
-        for i in again:
-            heapq.heappush(waiting, i)
+                break
+            for i, reply, code in pool.replies():
+                if reply is None:
+                    if (failed := died(i, code)) is not None:
+                        yield failed
+                else:
+                    ok, value = reply
+                    yield (i, value, None) if ok else (i, None, value)
+        finished = True
+    finally:
+        pool.stop(finished)
 
 
 def _outcomes(fn: Callable[[Any], Any], items: Sequence[Any], jobs: int, scheduler: str,
@@ -252,9 +428,10 @@ def map_progress(fn: Callable[[T], R], items: Sequence[T], *, jobs: int = 1, des
     errors: dict[int, BaseException | TaskFailure] = {}
     with tqdm(total=len(items), desc=desc, unit=unit, disable=not progress or len(items) < 2,
               file=sys.stderr) as bar:
-        if items:
-            for i, value, error in _outcomes(fn, items, jobs, scheduler, worker_env, retries,
-                                             lambda: len(items)):
+        stream = (_outcomes(fn, items, jobs, scheduler, worker_env, retries, lambda: len(items))
+                  if items else ())
+        try:
+            for i, value, error in stream:
                 if error is None:
                     out[i] = value
                     if postfix is not None:
@@ -265,6 +442,8 @@ def map_progress(fn: Callable[[T], R], items: Sequence[T], *, jobs: int = 1, des
                               else TaskFailure(i, failure_reason(error)))
                     bar.set_postfix_str(f"{name(items[i]) if name else f'item {i}'} failed")
                 bar.update()
+        finally:  # on Ctrl-C here too, the workers are stopped before the exception goes on
+            _close(stream)
     if errors and on_error == "raise":
         first = min(errors)
         _raise(errors[first], name(items[first]) if name else "", len(errors) - 1)
@@ -318,6 +497,11 @@ def iter_ordered(fn: Callable[[T], R], items: Sequence[T], *, jobs: int = 1, sch
                 nxt += 1
                 yield value
     finally:
-        close = getattr(stream, "close", None)
-        if close is not None:
-            close()
+        _close(stream)
+
+
+def _close(stream: Any) -> None:
+    """Close an outcome stream (a generator): its workers or cluster are stopped before this returns."""
+    close = getattr(stream, "close", None)
+    if close is not None:
+        close()

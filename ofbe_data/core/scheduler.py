@@ -30,7 +30,8 @@ import multiprocessing
 import os
 import pickle
 import re
-import signal
+import shutil
+import tempfile
 import threading
 import time
 import uuid
@@ -40,6 +41,7 @@ from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from typing import Any
 
+from ofbe_data.core.atomic import interrupts_deferred
 from ofbe_data.core.errors import OfbeError
 
 PROCESSES = "processes"
@@ -289,20 +291,39 @@ def _children_ignore_ctrl_c() -> Iterator[None]:
 
     A terminal sends SIGINT to every process of the foreground group, the embedded cluster's
     worker processes included, and each would print its own ``KeyboardInterrupt`` traceback.
-    A signal ignored at ``exec`` stays ignored in the child (Python then installs no handler
-    of its own), so the workers started inside this block ignore Ctrl-C, and this process,
-    which gets it too, closes them (one line, exit 130, from ``core.cli.command``). A worker
-    started later (after a death) ignores it through the preload :mod:`ofbe_data.core.worker_signals`.
-    A Ctrl-C in the second the cluster takes to start is ignored: press it again.
+    The cluster starts inside this block, with Ctrl-C held off and SIGINT blocked in this thread
+    (:func:`~ofbe_data.core.atomic.interrupts_deferred`): the threads it starts here (its IO
+    loop) and the worker processes they start, now or after a death, inherit the block (a mask
+    survives fork and exec), until the preload :mod:`ofbe_data.core.worker_signals` ignores
+    Ctrl-C in each worker. A Ctrl-C while the cluster starts is raised as it is up; the caller
+    then closes it (one line, exit 130, from ``core.cli.command``).
     """
-    if threading.current_thread() is not threading.main_thread():
-        yield  # handlers can only be set from the main thread
-        return
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    try:
+    if threading.current_thread() is threading.main_thread():
+        from multiprocessing import resource_tracker
+
+        resource_tracker.ensure_running()  # its start unblocks SIGINT in this thread: not inside
+    with interrupts_deferred():
         yield
+
+
+@contextlib.contextmanager
+def _scratch_space() -> Iterator[str]:
+    """A folder of this run's own for the embedded cluster's scratch space (Dask's
+    ``temporary-directory``), removed once the cluster is closed: Dask leaves its lock files in
+    the system's temporary folder, those of a worker killed as a Ctrl-C closes the cluster too."""
+    path = None
+    try:
+        with interrupts_deferred():  # the folder and its name here, or neither
+            path = tempfile.mkdtemp(prefix="ofbe-dask-")
+        yield path
     finally:
-        signal.signal(signal.SIGINT, previous)
+        if path is not None:
+            with interrupts_deferred():
+                for _ in range(20):  # a worker process that is still ending may write there a moment more
+                    shutil.rmtree(path, ignore_errors=True)
+                    if not os.path.exists(path):
+                        break
+                    time.sleep(0.1)
 
 
 @contextlib.contextmanager
@@ -343,12 +364,16 @@ def dask_client(scheduler: str, jobs: int, worker_env: Mapping[str, str] | None 
                               "distributed.scheduler.worker-saturation": 1.0,
                               # so that a worker may start the process of run_isolated
                               "distributed.worker.daemon": False}
-    if scheduler == DASK:
-        config["distributed.comm.timeouts.connect"] = _LOCAL_CONNECT_TIMEOUT
-        preload = [str(m) for m in dask.config.get("distributed.worker.preload", None) or []]
-        config["distributed.worker.preload"] = [*preload, "ofbe_data.core.worker_signals"]  # the user's kept
     level = logging.WARNING if verbose else logging.CRITICAL
-    with dask.config.set(config), _quiet(verbose) as deaths, contextlib.ExitStack() as stack:
+    with contextlib.ExitStack() as stack:
+        if scheduler == DASK:
+            config["distributed.comm.timeouts.connect"] = _LOCAL_CONNECT_TIMEOUT
+            preload = [str(m) for m in dask.config.get("distributed.worker.preload", None) or []]
+            # the user's preloads kept
+            config["distributed.worker.preload"] = [*preload, "ofbe_data.core.worker_signals"]
+            config["temporary-directory"] = stack.enter_context(_scratch_space())  # removed last
+        stack.enter_context(dask.config.set(config))
+        deaths = stack.enter_context(_quiet(verbose))
         if scheduler == DASK:
             env = {"env": dict(worker_env)} if worker_env else {}
             # no dashboard; the scheduler's HTTP server (metrics) on a free port, not on 8787,
