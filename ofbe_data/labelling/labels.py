@@ -177,6 +177,9 @@ def label_params_from(data: dict[str, Any] | None, source: str | Path = "<parame
     if params.fit_model not in ("auto", *MODELS):
         raise ConfigError(source, "label.fit_model", "auto or one of " + ", ".join(MODELS),
                           repr(params.fit_model))
+    if not params.multi_position_max_condition >= 1:  # a condition number is never below 1
+        raise ConfigError(source, "label.multi_position_max_condition", "a number ≥ 1 (a condition number)",
+                          str(params.multi_position_max_condition))
     if not 0 < params.fit_alpha < 1:
         raise ConfigError(source, "label.fit_alpha", "a number between 0 and 1", str(params.fit_alpha))
     return params
