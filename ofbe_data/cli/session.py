@@ -450,7 +450,32 @@ def _check(args: argparse.Namespace) -> int:
     for folder in skipped_folders(args.dirs):
         print(f"{PROG}: note: {folder}: no {MANIFEST_NAME} in it, not a session (skipped)", file=sys.stderr)
     results = [_check_one(f, params) for f in folders]
+    for line in shared_power_cycles(folders):
+        print(f"{PROG}: warning: {line}", file=sys.stderr)
     return EXIT_OK if all(results) else EXIT_DATA
+
+
+def shared_power_cycles(folders: Sequence[Path]) -> list[str]:
+    """One line per device that several of the sessions checked together put in one power cycle.
+
+    Recordings of one power cycle share one zero-g offset: the campaign fit and the exports treat
+    them as one (``ofbe-export json`` refuses two offsets for one power cycle). Two sessions left at
+    ``power_cycle: 1`` (``init``'s default when a name says nothing) are the usual cause; one power
+    cycle recorded in two session folders is legitimate, hence a warning.
+    """
+    seen: dict[tuple[str, int, str], list[str]] = {}
+    for folder in folders:
+        try:
+            m = load_manifest(folder)
+        except OfbeError:
+            continue  # _check_one has said why
+        for dev in m.duts:
+            seen.setdefault((m.campaign, m.power_cycle, dev.id), []).append(m.session)
+    return [f"sessions {', '.join(sessions)} of campaign {campaign} all say power_cycle {pc} for device "
+            f"{dev}: "
+            "their recordings are taken to share one zero-g offset; if the device was switched off between "
+            "them, give each session its own power_cycle in its session.yaml"
+            for (campaign, pc, dev), sessions in sorted(seen.items()) if len(sessions) > 1]
 
 
 @command(PROG)

@@ -51,3 +51,24 @@ def test_a_folder_without_session_yaml_is_named_not_skipped_silently(tmp_path, c
     assert "ofbe-label: 1 session labelled, 0 failed; " in err
     session_main(["check", str(campaign)])
     assert f"ofbe-session: {note}" in capsys.readouterr().err
+
+
+def test_check_warns_when_two_sessions_put_a_device_in_one_power_cycle(tmp_path, capsys) -> None:
+    """Two sessions left at one power_cycle for the same device (init's default) are said by check,
+    not first by ofbe-export json; sessions of different power cycles are not."""
+    campaign = tmp_path / "campaign"
+    for name in ("ga-pc001", "ga-pc002"):
+        shutil.copytree(EXAMPLES / "tiny-gravity-aligned" / name, campaign / name)
+    second = campaign / "ga-pc002" / "session.yaml"
+    text = second.read_text()
+    assert "power_cycle: 2" in text
+    session_main(["check", str(campaign)])
+    assert "power_cycle" not in capsys.readouterr().err
+    second.write_text(text.replace("power_cycle: 2", "power_cycle: 1"))
+    session_main(["check", str(campaign)])
+    err = capsys.readouterr().err
+    warned = [line for line in err.splitlines() if "all say power_cycle" in line]
+    start = ("ofbe-session: warning: sessions ga-pc001, ga-pc002 of campaign tiny-gravity-aligned all say "
+             "power_cycle 1 for device ")
+    assert warned and all(line.startswith(start) for line in warned)
+    assert warned[0].endswith("give each session its own power_cycle in its session.yaml")
