@@ -5,44 +5,13 @@ pandas, scipy) is one line and exit 130, not a traceback (pyproject.toml's ``[pr
 
 from __future__ import annotations
 
-from ofbe_data.core.entry import run
+from ofbe_data.core.entry import console_script
 
-
-def simulate() -> int:
-    """``ofbe-simulate`` (:mod:`ofbe_data.cli.simulate`)."""
-    return run("ofbe_data.cli.simulate", "ofbe-simulate")
-
-
-def label() -> int:
-    """``ofbe-label`` (:mod:`ofbe_data.cli.label`)."""
-    return run("ofbe_data.cli.label", "ofbe-label")
-
-
-def convergence() -> int:
-    """``ofbe-convergence`` (:mod:`ofbe_data.cli.convergence`)."""
-    return run("ofbe_data.cli.convergence", "ofbe-convergence")
-
-
-def small_angle() -> int:
-    """``ofbe-small-angle`` (:mod:`ofbe_data.cli.small_angle`)."""
-    return run("ofbe_data.cli.small_angle", "ofbe-small-angle")
-
-
-def dataset() -> int:
-    """``ofbe-dataset`` (:mod:`ofbe_data.cli.dataset`)."""
-    return run("ofbe_data.cli.dataset", "ofbe-dataset")
-
-
-def index() -> int:
-    """``ofbe-index`` (:mod:`ofbe_data.cli.index`)."""
-    return run("ofbe_data.cli.index", "ofbe-index")
-
-
-def session() -> int:
-    """``ofbe-session`` (:mod:`ofbe_data.cli.session`)."""
-    return run("ofbe_data.cli.session", "ofbe-session")
-
-
-def autocal() -> int:
-    """``ofbe-autocal`` (:mod:`ofbe_data.cli.autocal`)."""
-    return run("ofbe_data.cli.autocal", "ofbe-autocal")
+simulate = console_script("ofbe_data.cli.simulate", "ofbe-simulate")
+label = console_script("ofbe_data.cli.label", "ofbe-label")
+convergence = console_script("ofbe_data.cli.convergence", "ofbe-convergence")
+small_angle = console_script("ofbe_data.cli.small_angle", "ofbe-small-angle")
+dataset = console_script("ofbe_data.cli.dataset", "ofbe-dataset")
+index = console_script("ofbe_data.cli.index", "ofbe-index")
+session = console_script("ofbe_data.cli.session", "ofbe-session")
+autocal = console_script("ofbe_data.cli.autocal", "ofbe-autocal")

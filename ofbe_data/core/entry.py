@@ -134,3 +134,15 @@ def run(module: str, prog: str) -> Any:
             print(f"{prog}: {INTERRUPTED}", file=sys.stderr)
             code = EXIT_INTERRUPTED
     return code
+
+
+def console_script(module: str, prog: str) -> Callable[[], Any]:
+    """A console script's function: ``run(module, prog)`` (pyproject.toml's ``[project.scripts]``
+    names one per command, in :mod:`ofbe_data.cli.entry` and :mod:`ofbe_model.cli.entry`)."""
+
+    def script() -> Any:
+        return run(module, prog)
+
+    script.__name__ = script.__qualname__ = prog.removeprefix("ofbe-").replace("-", "_")
+    script.__doc__ = f"``{prog}`` (:mod:`{module}`)."
+    return script

@@ -22,6 +22,7 @@ task to end, before the exception goes on to the caller (whose temporary folder 
 
 from __future__ import annotations
 
+import contextlib
 import heapq
 import multiprocessing
 import os
@@ -246,10 +247,9 @@ class _Pool:
         with interrupts_deferred():
             for w in self.workers:
                 if finished:
-                    try:
+                    # a worker whose pipe is gone has died already: the join and kill below end it
+                    with contextlib.suppress(OSError):
                         w.conn.send(None)
-                    except OSError:
-                        pass
                 else:
                     w.process.terminate()
             deadline = time.monotonic() + STOP_S

@@ -5,24 +5,9 @@ is one line and exit 130, not a traceback (pyproject.toml's ``[project.scripts]`
 
 from __future__ import annotations
 
-from ofbe_data.core.entry import run
+from ofbe_data.core.entry import console_script
 
-
-def train() -> int:
-    """``ofbe-train`` (:mod:`ofbe_model.cli.train`)."""
-    return run("ofbe_model.cli.train", "ofbe-train")
-
-
-def benchmark() -> int:
-    """``ofbe-benchmark`` (:mod:`ofbe_model.cli.benchmark`)."""
-    return run("ofbe_model.cli.benchmark", "ofbe-benchmark")
-
-
-def predict() -> int:
-    """``ofbe-predict`` (:mod:`ofbe_model.cli.predict`)."""
-    return run("ofbe_model.cli.predict", "ofbe-predict")
-
-
-def export() -> int:
-    """``ofbe-export`` (:mod:`ofbe_model.cli.export`)."""
-    return run("ofbe_model.cli.export", "ofbe-export")
+train = console_script("ofbe_model.cli.train", "ofbe-train")
+benchmark = console_script("ofbe_model.cli.benchmark", "ofbe-benchmark")
+predict = console_script("ofbe_model.cli.predict", "ofbe-predict")
+export = console_script("ofbe_model.cli.export", "ofbe-export")

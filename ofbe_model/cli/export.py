@@ -493,9 +493,8 @@ def _new_folders(folder: Path) -> list[Path]:
 def _check_folder_for(path: Path) -> None:
     """Refuse, before anything is written, a target whose folder cannot be made: the nearest
     existing ancestor of its folder must be a folder (not a file)."""
-    folder = path.parent
-    while not folder.exists() and folder != folder.parent:
-        folder = folder.parent
+    missing = _new_folders(path.parent)
+    folder = missing[0].parent if missing else path.parent  # the nearest that exists
     if not folder.is_dir():
         raise CalibrationStoreError(f"{path}: expected {folder} to be a folder to write into, found a file")
 

@@ -55,7 +55,7 @@ from ofbe_data import __version__
 from ofbe_data.core.atomic import write_bytes_atomic
 from ofbe_data.core.errors import OfbeError
 from ofbe_data.core.parallel import map_progress
-from ofbe_data.dataset.reader import load_dataset
+from ofbe_data.dataset.reader import LoadedDataset, load_dataset
 from ofbe_model.benchmark.evaluation import benchmark_datasets
 from ofbe_model.estimators.priors import GravityPrior
 from ofbe_model.ofbenet.params import WORKER_ENV, OFBENetParams
@@ -504,7 +504,8 @@ def train_finals(datasets: Sequence[str | Path], out: str | Path, params: OFBENe
                             progress=progress, worker_env=WORKER_ENV, scheduler=scheduler,
                             postfix=lambda r: f"{r['epochs_run']} epochs",
                             name=lambda t: f"final OFBENet of {t.name}")
-        cards = [_card(t, fit, benchmark_reports, max_in_sample_ratio)
+        loaded = {d: load_dataset(d) for d in dict.fromkeys(t.dataset for t in tasks)}  # once per dataset
+        cards = [_card(t, fit, loaded[t.dataset], benchmark_reports, max_in_sample_ratio)
                  for t, fit in zip(tasks, fits, strict=True)]
         problems = [f"{t.name}: {line}" for t, card in zip(tasks, cards, strict=True)
                     for line in accuracy_problems(card["accuracy"], max_in_sample_ratio)]
@@ -524,13 +525,13 @@ def train_finals(datasets: Sequence[str | Path], out: str | Path, params: OFBENe
     return [Path(t.path).parent for t in tasks]
 
 
-def _card(task: _FinalTask, fit: Mapping[str, Any], benchmark_reports: Sequence[str | Path],
-          max_ratio: float) -> dict[str, Any]:
-    """Fit the gravity-prior of one benchmark dataset beside its OFBENet; the card of both."""
+def _card(task: _FinalTask, fit: Mapping[str, Any], ds: LoadedDataset,
+          benchmark_reports: Sequence[str | Path], max_ratio: float) -> dict[str, Any]:
+    """Fit the gravity-prior of one benchmark dataset (of the loaded ``ds``) beside its OFBENet; the
+    card of both."""
     dataset = Path(task.dataset)
     folder = Path(task.path).parent
     params = task.params
-    ds = load_dataset(dataset)
     meta = ds.meta.reset_index(drop=True)
     rows = _rows(meta, task.devices)
     sub = meta.iloc[rows].reset_index(drop=True)
