@@ -1,5 +1,25 @@
 """The data's journey from raw files to shareable datasets, in wings.
 
+The front door (what a notebook needs; each name is imported on first use, so that
+``import ofbe_data`` stays light):
+
+>>> import ofbe_data as od
+>>> session = od.load_manifest("raw/examples/tiny-multi-position/mp-pc001")  # session.yaml
+>>> labels = od.label_session("raw/examples/tiny-multi-position/mp-pc001")   # 16 poses, 2 boards
+>>> df = od.read_labels("processed/labels/rotated")                     # labels as pandas
+>>> ds = od.load_dataset("processed/datasets/rotated")                  # windows, labels, folds
+
+- reading: :func:`load_manifest` (a session's ``session.yaml``), :func:`read_device_file` (one
+  device file as a typed ``Recording``), :func:`simulate_campaign` (a simulated campaign with
+  its truth);
+- labelling: :func:`label_session`, :class:`LabelParams`, :func:`load_label_params`,
+  :func:`write_session`, :func:`read_labels`;
+- datasets and calibrations: :func:`load_dataset`, :func:`verify_dataset`,
+  :func:`find_calibration` (the calibration in force for a device at a time);
+- free-living: :func:`read_epoch_csv`, :func:`ggir_calibrate` (GGIR's ``g.calibrate``).
+
+The wings:
+
 - :mod:`ofbe_data.core`: errors, atomic writes, precision, geometry, the worker pool, the
   figure style, the shared command-line pieces;
 - :mod:`ofbe_data.io`: manifests, device formats (one module per format behind a registry),
@@ -8,36 +28,50 @@
 - :mod:`ofbe_data.labelling`: synchronisation, stationarity, orientation, the pose and campaign
   fits, convergence, labels and the label files;
 - :mod:`ofbe_data.dataset`: windows, leak-free splits, the dataset store, export;
+- :mod:`ofbe_data.calibration`: calibration results and the other tools' formats;
+- :mod:`ofbe_data.freeliving`: calibration of wearables from their own still periods;
 - :mod:`ofbe_data.reports`: the convergence, small-angle and index reports;
 - :mod:`ofbe_data.cli`: the data package's commands.
 
 Data flows one way, raw files → recordings → labels → windows/splits → datasets; the import
 rules are in docs/architecture.md and enforced by tests/test_architecture.py.
-``ofbe_data.load_dataset``, ``ofbe_data.read_labels`` and ``ofbe_data.find_calibration`` (the
-calibration in force for a device at a time, :mod:`ofbe_data.calibration.store`) are imported on
-first use, so that ``import ofbe_data`` stays light.
 """
 
 from __future__ import annotations
 
+import importlib
 from typing import Any
 
 __version__ = "0.1.0"
 
-__all__ = ["__version__", "find_calibration", "load_dataset", "read_labels"]
+_FRONT_DOOR = {
+    "load_manifest": "ofbe_data.io.manifest",
+    "read_device_file": "ofbe_data.io.formats",
+    "simulate_campaign": "ofbe_data.simulator",
+    "label_session": "ofbe_data.labelling.labels",
+    "LabelParams": "ofbe_data.labelling.labels",
+    "load_label_params": "ofbe_data.labelling.labels",
+    "write_session": "ofbe_data.labelling.store",
+    "read_labels": "ofbe_data.labelling.store",
+    "load_dataset": "ofbe_data.dataset.reader",
+    "verify_dataset": "ofbe_data.dataset.reader",
+    "find_calibration": "ofbe_data.calibration.store",
+    "read_epoch_csv": "ofbe_data.freeliving",
+    "ggir_calibrate": "ofbe_data.freeliving",
+}
+"""Each front-door name and the module that defines it (imported on first use)."""
+
+__all__ = ["__version__", *sorted(_FRONT_DOOR)]
 
 
 def __getattr__(name: str) -> Any:
-    if name == "load_dataset":
-        from ofbe_data.dataset.reader import load_dataset
+    module = _FRONT_DOOR.get(name)
+    if module is None:
+        raise AttributeError(f"module 'ofbe_data' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
 
-        return load_dataset
-    if name == "find_calibration":
-        from ofbe_data.calibration.store import find_calibration
 
-        return find_calibration
-    if name == "read_labels":
-        from ofbe_data.labelling.store import read_labels
-
-        return read_labels
-    raise AttributeError(f"module 'ofbe_data' has no attribute {name!r}")
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_FRONT_DOOR))
