@@ -1,94 +1,125 @@
 """``ofbe-autocal``: calibrate wearable recordings from their own still periods.
 
-This slice reads *epoch* csv files (GGIR's ``spheredata`` layout, see
-:mod:`ofbe_data.freeliving.epochs`) and calibrates them as GGIR's ``g.calibrate`` does
-(``--mode ggir``, :func:`ofbe_data.freeliving.ggir.ggir_calibrate`). ``--mode ofbe`` and raw
-inputs (.cwa, .bin, .gt3x, raw csv) are later slices (docs/free-living.md).
+Reads raw wearable files (Axivity ``.cwa``; GENEActiv ``.bin`` and ActiGraph ``.gt3x`` with the
+optional ``wearables`` extra; a csv of samples that ofbe's generic reader understands), summarised
+into GGIR's 10-s epochs as it does (:func:`ofbe_data.freeliving.raw.read_raw_epochs`), and
+*epoch* csv files (GGIR's ``spheredata`` layout, :mod:`ofbe_data.freeliving.epochs`; a csv whose
+header names ``meanx``, ``meany``, ``meanz``). Calibrates them by ofbe's calibration ladder
+(``--mode ofbe``, the default: :func:`ofbe_data.freeliving.ofbe.ofbe_calibrate`) or as GGIR's
+``g.calibrate`` does (``--mode ggir``: :func:`ofbe_data.freeliving.ggir.ggir_calibrate`).
 
-Writes ``DIR/summary.csv``: one row per file read, in the order named (a folder's ``.csv``
-files sorted by name), the same bytes for the same inputs. A recording GGIR would not
-calibrate is a row with GGIR's QC message and identity coefficients, not a failure.
+Writes ``DIR/summary.csv`` and ``DIR/summary.parquet`` (one row per file read, in the order
+named, a folder's ``.csv`` files sorted by name) and ``DIR/<file stem>.epochs.parquet`` per
+file (its still epochs), the same bytes for the same inputs
+(:mod:`ofbe_data.freeliving.summary`). A recording that cannot be calibrated is a row with its
+QC message and identity coefficients, not a failure.
+
+``--jobs`` / ``--scheduler`` calibrate files at once (ofbe's process pool or Dask); the outputs
+are the same bytes whatever the choice, written in the order the files were named.
 
 Exit status: 0 when every file was read; 1 when a file could not be read (one line per such
 file, naming it, the line and the reason; the other files are still calibrated and the summary
-written); 2 on a usage error (an unknown mode, a path that does not exist, a bad value).
+written); 2 on a usage error (an unknown mode, a path that does not exist, a bad value, two
+inputs whose epochs files would have one name).
 """
 
 from __future__ import annotations
 
 import argparse
-import csv
 import hashlib
-import io
 import sys
 from collections.abc import Sequence
+from datetime import UTC, datetime
 from pathlib import Path
 
 from ofbe_data.core.atomic import write_bytes_atomic
-from ofbe_data.core.cli import command, fail, io_failure
-from ofbe_data.core.precision import UNIT_DECIMALS, round_decimals
-from ofbe_data.freeliving import EpochFileError, GgirResult, GgirSettings, ggir_calibrate, parse_epoch_csv
+from ofbe_data.core.cli import EXIT_DATA, add_jobs, add_scheduler, command, fail, io_failure, with_examples
+from ofbe_data.core.errors import OfbeError
+from ofbe_data.core.parallel import iter_ordered
+from ofbe_data.core.scheduler import SchedulerError, TaskError
+from ofbe_data.freeliving import GgirSettings, ggir_calibrate, parse_epoch_csv
+from ofbe_data.freeliving.epochs import EpochTable
+from ofbe_data.freeliving.ofbe import OfbeSettings, ofbe_calibrate
+from ofbe_data.freeliving.raw import RawEpochs, read_raw_epochs
+from ofbe_data.freeliving.summary import (
+    COLUMNS,
+    epochs_table,
+    parquet_bytes,
+    summary_csv,
+    summary_parquet,
+    summary_row,
+)
+from ofbe_data.io.detect_result import Hints
 
 PROG = "ofbe-autocal"
 SUMMARY_NAME = "summary.csv"
+SUMMARY_PARQUET = "summary.parquet"
+EPOCHS_SUFFIX = ".epochs.parquet"
 EPOCH_SUFFIX = ".csv"
-"""What this slice reads: epoch csv files."""
+"""Epoch csv files, or csv files of samples."""
 RAW_SUFFIXES = (".cwa", ".bin", ".gt3x")
-"""Raw wearable formats of the slices to come."""
+"""Raw wearable formats (Axivity, GENEActiv, ActiGraph)."""
+EPOCH_COLUMNS = ("meanx", "meany", "meanz")
+"""A csv whose header names these is an epoch csv; any other csv is read as samples."""
 
-COLUMNS = ("file", "sha256", "hours", "n_epochs", "n_still", "mode", "model", "calibrated", "qc",
-           "cal_error_start_mg", "cal_error_end_mg",
-           "offset_x", "offset_y", "offset_z", "scale_x", "scale_y", "scale_z",
-           "temp_offset_x", "temp_offset_y", "temp_offset_z", "temp_mean_c")
-"""The columns of ``summary.csv`` this slice fills (docs/free-living.md)."""
-
-_DECIMALS = {"hours": 9, "cal_error_start_mg": 9, "cal_error_end_mg": 9,
-             **{f"offset_{a}": 12 for a in "xyz"}, **{f"scale_{a}": UNIT_DECIMALS for a in "xyz"},
-             **{f"temp_offset_{a}": 12 for a in "xyz"}, "temp_mean_c": 6}
-"""Decimal places of each float column (offsets in g and g/°C to 1e-12, errors in mg to 1e-9):
-far below anything physical, so that the bytes do not depend on the machine's BLAS
-(:mod:`ofbe_data.core.precision`)."""
+__all__ = ["COLUMNS", "PROG", "calibrate_file", "epochs_name", "expand_inputs", "main"]
 
 
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog=PROG,
-        description="Calibrate wearable recordings from their own still periods. This version reads "
-                    "epoch csv files (columns meanx, meany, meanz, sdx, sdy, sdz in g, optional "
-                    "temperature in °C: GGIR's spheredata layout) and calibrates them as GGIR's "
-                    "g.calibrate does (--mode ggir). Writes <out>/summary.csv.")
+        description="Calibrate wearable recordings from their own still periods. Reads Axivity .cwa, "
+                    "GENEActiv .bin and ActiGraph .gt3x files (the last two need pip install "
+                    "'ofbe[wearables]'), csv files of samples, and epoch csv files (columns meanx, meany, "
+                    "meanz, sdx, sdy, sdz in g, optional temperature in °C: GGIR's spheredata layout). "
+                    "Writes <out>/summary.csv, <out>/summary.parquet and <out>/<file>.epochs.parquet.")
     p.add_argument("paths", nargs="+", metavar="FILE_OR_FOLDER",
-                   help="epoch csv files, or folders whose .csv files are read")
+                   help="recordings, or folders whose .cwa, .bin, .gt3x and .csv files are read")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder (made if missing)")
     p.add_argument("--mode", choices=("ofbe", "ggir"), default="ofbe",
-                   help="ggir: GGIR's g.calibrate, reproduced; ofbe (the default): ofbe's calibration "
-                        "ladder (not yet available)")
+                   help="ofbe (the default): ofbe's calibration ladder (offset, scale-offset, full, "
+                        "+temperature) with robust weights and standard errors; ggir: GGIR's "
+                        "g.calibrate, reproduced")
     p.add_argument("--epoch-s", type=float, default=10.0,
                    help="length of one epoch, s, for the hours of data (default: %(default)s, GGIR's)")
     p.add_argument("--still-sd-g", type=float, default=0.013,
                    help="an epoch is still when its standard deviation is below this on every axis, g "
                         "(default: %(default)s, GGIR's)")
     p.add_argument("--no-sphere-check", action="store_true",
-                   help="fit even when the still epochs do not reach beyond ±0.3 g on every axis")
+                   help="fit even when the still epochs do not cover the sphere (ggir: beyond ±0.3 g on "
+                        "every axis; ofbe: within 45° of every signed axis)")
+    p.add_argument("--rate", type=float, metavar="HZ",
+                   help="csv files of samples: the sample rate, where the file has no time column it reads")
+    p.add_argument("--unit", choices=("g", "mg", "m/s2"),
+                   help="csv files of samples: the acceleration unit, where the file does not say it")
+    add_jobs(p, "worker processes (files calibrated at once)")
+    add_scheduler(p)
     p.add_argument("--quiet", action="store_true", help="no summary line")
-    return p
+    return with_examples(
+        p, "ofbe-autocal mine/epochs/ --out mine/autocal           # every .csv of a folder, ofbe's ladder",
+        "ofbe-autocal wrist.cwa --out mine/autocal --mode ggir       # GGIR's g.calibrate, reproduced",
+        "ofbe-autocal spheredata.csv --out mine/autocal             # epochs you already have",
+        "ofbe-autocal study/ --out mine/autocal --jobs 8 --scheduler dask   # thousands of files")
 
 
 def expand_inputs(paths: Sequence[str], out: Path) -> list[Path]:
-    """The files named, each folder replaced by its ``.csv`` files sorted by name (those under
+    """The files named, each folder replaced by its recordings sorted by name (those under
     ``out`` left out), each file once, in the order named.
 
     Raises
     ------
     FileNotFoundError
         A path does not exist.
+    ValueError
+        Two files would write one epochs file (:func:`epochs_name`).
     """
     files: list[Path] = []
     out = out.resolve()
     for name in paths:
         path = Path(name)
         if path.is_dir():
-            found = sorted(p for p in path.iterdir() if p.suffix.lower() == EPOCH_SUFFIX and p.is_file()
+            found = sorted(p for p in path.iterdir()
+                           if p.suffix.lower() in (EPOCH_SUFFIX, *RAW_SUFFIXES) and p.is_file()
                            and out not in p.resolve().parents)
             files += found
         elif path.exists():
@@ -97,102 +128,168 @@ def expand_inputs(paths: Sequence[str], out: Path) -> list[Path]:
             raise FileNotFoundError(f"{name}: no such file or folder")
     seen: set[Path] = set()
     unique = []
+    names: dict[str, Path] = {}
     for f in files:
         if f.resolve() not in seen:
             seen.add(f.resolve())
             unique.append(f)
+            other = names.setdefault(epochs_name(f), f)
+            if other is not f:
+                raise ValueError(f"{other} and {f}: expected inputs with different names (both would write "
+                                 f"{epochs_name(f)}), found the same")
     return unique
 
 
-def _cell(name: str, value: object) -> str:
-    if value is None:
-        return ""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, float):
-        rounded = round_decimals(value, _DECIMALS[name])
-        return repr(rounded)
-    return str(value)
+def epochs_name(path: Path) -> str:
+    """``<file stem>.epochs.parquet``: the name of a file's epochs in the output folder."""
+    return path.stem + EPOCHS_SUFFIX
 
 
-def summary_row(file: str, sha256: str, result: GgirResult) -> dict[str, object]:
-    """One row of ``summary.csv`` for a GGIR-mode result."""
-    row: dict[str, object] = {
-        "file": file, "sha256": sha256, "hours": float(result.hours), "n_epochs": result.n_epochs,
-        "n_still": result.n_still, "mode": "ggir", "model": result.model, "calibrated": result.calibrated,
-        "qc": result.qc,
-        "cal_error_start_mg": None if result.cal_error_start is None else result.cal_error_start * 1000.0,
-        "cal_error_end_mg": None if result.cal_error_end is None else result.cal_error_end * 1000.0,
-        "temp_mean_c": result.temp_mean_c,
-    }
-    for k, axis in enumerate("xyz"):
-        row[f"offset_{axis}"] = float(result.offset[k])
-        row[f"scale_{axis}"] = float(result.scale[k])
-        row[f"temp_offset_{axis}"] = float(result.temp_offset[k])
-    return row
+def _sha256(path: Path) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 22), b""):
+            digest.update(block)
+    return digest.hexdigest()
 
 
-def summary_csv(rows: Sequence[dict[str, object]]) -> bytes:
-    """``summary.csv``'s bytes: a header and one line per row, ``\\n`` line ends."""
-    buf = io.StringIO()
-    writer = csv.writer(buf, lineterminator="\n")
-    writer.writerow(COLUMNS)
-    for row in rows:
-        writer.writerow([_cell(c, row[c]) for c in COLUMNS])
-    return buf.getvalue().encode("utf-8")
+def is_epoch_csv(path: Path) -> bool:
+    """Whether a ``.csv`` holds epochs (its first line names meanx, meany and meanz) rather than
+    samples."""
+    with open(path, "rb") as fh:
+        head = fh.read(4096).decode("utf-8", errors="replace").lstrip("\ufeff").splitlines()
+    first = next((line for line in head if line.strip()), "")
+    names = {c.strip().strip('"').lower() for c in first.replace(";", ",").split(",")}
+    return all(c in names for c in EPOCH_COLUMNS)
 
 
-def calibrate_file(path: Path, settings: GgirSettings) -> dict[str, object]:
-    """Read and calibrate one epoch csv; its summary row.
+def read_epochs(path: Path, settings: GgirSettings | OfbeSettings, hints: Hints | None = None
+                ) -> tuple[EpochTable, RawEpochs | None]:
+    """A recording's epochs, and what its raw file tells (None for an epoch csv); ``hints``
+    settle what a csv of samples does not say itself (its rate, its unit).
 
     Raises
     ------
-    EpochFileError
-        The file is not an epoch csv (the message names the file and line), or is a raw format
-        of a later slice.
+    OfbeError
+        The file is none of the formats read, or its reader refuses it (the message names the
+        file, and the line or byte offset where there is one).
     OSError
         The file cannot be read.
     """
-    if path.suffix.lower() in RAW_SUFFIXES:
-        raise EpochFileError(path, "an epoch csv (raw .cwa, .bin and .gt3x files are not yet available "
-                                   "in ofbe-autocal)", f"a {path.suffix} file")
-    data = path.read_bytes()
-    result = ggir_calibrate(parse_epoch_csv(data, path), settings)
-    return summary_row(str(path), hashlib.sha256(data).hexdigest(), result)
+    if path.suffix.lower() == EPOCH_SUFFIX and is_epoch_csv(path):
+        return parse_epoch_csv(path.read_bytes(), path), None
+    raw = read_raw_epochs(path, settings.epoch_s, ggir_whole_hours=isinstance(settings, GgirSettings),
+                          csv_hints=hints)
+    return raw.epochs, raw
+
+
+def calibrate_file(path: Path, settings: GgirSettings | OfbeSettings, hints: Hints | None = None
+                   ) -> tuple[dict[str, object], bytes, RawEpochs | None]:
+    """Read and calibrate one recording: its summary row, the bytes of its epochs file, and
+    what its raw file tells (None for an epoch csv).
+
+    ``settings`` chooses the mode (:class:`GgirSettings`: GGIR's; :class:`OfbeSettings`: ofbe's).
+
+    Raises
+    ------
+    OfbeError
+        The file cannot be read as a recording (:func:`read_epochs`).
+    OSError
+        The file cannot be read.
+    """
+    epochs, raw = read_epochs(path, settings, hints)
+    result = (ggir_calibrate(epochs, settings) if isinstance(settings, GgirSettings)
+              else ofbe_calibrate(epochs, settings))
+    start = None if raw is None or raw.start_utc is None else datetime.fromisoformat(raw.start_utc)
+    if start is not None and start.tzinfo is None:
+        start = start.replace(tzinfo=UTC)
+    row = summary_row(str(path), _sha256(path), result, device=None if raw is None else raw.device,
+                      start_utc=None if start is None else start.astimezone(UTC))
+    return row, parquet_bytes(epochs_table(epochs, result)), raw
+
+
+def _read_notes(path: Path, raw: RawEpochs | None) -> list[str]:
+    """What reading a raw file skipped or filled in, one line each (bad blocks named)."""
+    if raw is None:
+        return []
+    notes = []
+    if raw.bad_blocks:
+        named = ", ".join(f"{b.index} (byte {b.byte_offset}, {b.reason})" for b in raw.bad_blocks[:10])
+        more = f" and {len(raw.bad_blocks) - 10} more" if len(raw.bad_blocks) > 10 else ""
+        notes.append(f"{path}: {len(raw.bad_blocks)} bad data block(s) skipped and filled in as GGIR does: "
+                     f"{named}{more}")
+    if raw.idle_sleep.epochs:
+        notes.append(f"{path}: {raw.idle_sleep.epochs} epoch(s) of identical samples (idle sleep or a "
+                     "stopped sensor), left out of ofbe's fit")
+    return notes
+
+
+def _task(args: tuple[Path, GgirSettings | OfbeSettings, Hints]
+          ) -> tuple[dict[str, object], bytes, list[str]] | str:
+    """One file in a worker: its row, epochs bytes and notes, or the one line saying why it
+    could not be read (the same line whatever the scheduler)."""
+    path, settings, hints = args
+    try:
+        row, epochs, raw = calibrate_file(path, settings, hints)
+    except OfbeError as exc:
+        return str(exc)
+    except OSError as exc:
+        return f"{path}: {exc.strerror or exc}"
+    return row, epochs, _read_notes(path, raw)
 
 
 @command(PROG)
 def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
-    if args.mode == "ofbe":
-        return fail(PROG, "--mode ofbe: not yet available (ofbe's calibration ladder is a later slice); "
-                          "use --mode ggir", 2)
     out = Path(args.out)
     try:
-        settings = GgirSettings(still_sd_g=args.still_sd_g, epoch_s=args.epoch_s,
-                                sphere_check=not args.no_sphere_check)
+        settings: GgirSettings | OfbeSettings
+        if args.mode == "ggir":
+            settings = GgirSettings(still_sd_g=args.still_sd_g, epoch_s=args.epoch_s,
+                                    sphere_check=not args.no_sphere_check)
+        else:
+            settings = OfbeSettings(still_sd_g=args.still_sd_g, epoch_s=args.epoch_s,
+                                    sphere_check=not args.no_sphere_check)
         files = expand_inputs(args.paths, out)
+        if args.rate is not None and not args.rate > 0:
+            raise ValueError(f"--rate: expected a positive sample rate, Hz, found {args.rate}")
+        hints = Hints(rate_hz=args.rate, acc_unit=args.unit)
+        if args.jobs < 1:
+            raise ValueError(f"--jobs: expected an integer >= 1, found {args.jobs}")
     except (ValueError, FileNotFoundError) as exc:
         return fail(PROG, str(exc), 2)
     if out.exists() and not out.is_dir():
         return fail(PROG, f"--out {out}: expected a folder, found a file", 2)
     if not files:
-        return fail(PROG, f"no .csv file in {', '.join(args.paths)}", 2)
+        return fail(PROG, f"no .cwa, .bin, .gt3x or .csv file in {', '.join(args.paths)}", 2)
     rows, failed = [], 0
-    for path in files:
-        try:
-            rows.append(calibrate_file(path, settings))
-        except EpochFileError as exc:
-            failed += 1
-            print(f"{PROG}: error: {exc}", file=sys.stderr)
-        except OSError as exc:
-            failed += 1
-            print(f"{PROG}: error: {path}: {exc.strerror or exc}", file=sys.stderr)
+    results = iter_ordered(_task, [(path, settings, hints) for path in files], jobs=args.jobs,
+                           scheduler=args.scheduler, name=lambda task: str(task[0]))
+    try:
+        for path, result in zip(files, results, strict=True):
+            if isinstance(result, str):
+                failed += 1
+                print(f"{PROG}: error: {result}", file=sys.stderr)
+                continue
+            row, epochs, notes = result
+            for note in notes:
+                print(f"{PROG}: note: {note}", file=sys.stderr)
+            target = out / epochs_name(path)
+            try:
+                out.mkdir(parents=True, exist_ok=True)
+                write_bytes_atomic(target, epochs)
+            except OSError as exc:
+                return io_failure(PROG, exc, target, "the epochs could not be written")
+            rows.append(row)
+    except (TaskError, SchedulerError) as exc:
+        return fail(PROG, str(exc), EXIT_DATA)
+    target = out / SUMMARY_NAME
     try:
         out.mkdir(parents=True, exist_ok=True)
-        write_bytes_atomic(out / SUMMARY_NAME, summary_csv(rows))
+        write_bytes_atomic(out / SUMMARY_PARQUET, summary_parquet(rows))
+        write_bytes_atomic(target, summary_csv(rows))
     except OSError as exc:
-        return io_failure(PROG, exc, out / SUMMARY_NAME, "the summary could not be written")
+        return io_failure(PROG, exc, target, "the summary could not be written")
     if not args.quiet:
         done = sum(1 for r in rows if r["calibrated"])
         print(f"{PROG}: {len(rows)} read, {done} calibrated, {len(rows) - done} not (see qc), "

@@ -6,6 +6,17 @@
 - :mod:`~ofbe_data.freeliving.ggir`: GGIR's ``g.calibrate`` (wadpac/GGIR, R/g.calibrate.R),
   reproduced on epochs: still-epoch selection, the sphere-coverage rule, the iteratively
   re-weighted fit with centred temperature, the calibration errors and GGIR's QC outcomes.
+- :mod:`~ofbe_data.freeliving.robust`: one model of ofbe's calibration ladder fitted to still
+  epochs with robust (Huber, then bisquare) weights and jackknife standard errors over postures;
+- :mod:`~ofbe_data.freeliving.ladder`: the ladder's choice for wear (determination, Wald tests);
+- :mod:`~ofbe_data.freeliving.coverage`: the coverage rule and the directions that lack still epochs;
+- :mod:`~ofbe_data.freeliving.ofbe`: ``--mode ofbe`` for one recording (idle epochs, still epochs,
+  coverage, ladder, QC) and its coefficients in ofbe's and GGIR's conventions;
+- :mod:`~ofbe_data.freeliving.summary`: ``summary.csv``, ``summary.parquet`` and the epochs files;
+- :mod:`~ofbe_data.freeliving.raw`: raw wearable files (``.cwa``, ``.bin``, ``.gt3x``, csv of
+  samples) made into GGIR's epochs (:func:`read_raw_epochs`); the readers are
+  :mod:`~ofbe_data.freeliving.wearables`, :mod:`~ofbe_data.freeliving.axivity` and
+  :mod:`~ofbe_data.freeliving.blocks`.
 
 The command is ``ofbe-autocal`` (:mod:`ofbe_data.cli.autocal`); docs/free-living.md describes
 it. This package may import :mod:`ofbe_data.core`, :mod:`ofbe_data.io` (raw readers, for the
@@ -13,7 +24,14 @@ slices to come) and :mod:`ofbe_data.labelling` (the calibration ladder, for ``--
 never the simulator, the dataset or reports wings, or :mod:`ofbe_model`.
 """
 
-from ofbe_data.freeliving.epochs import EpochFileError, EpochTable, parse_epoch_csv, read_epoch_csv
+from ofbe_data.freeliving.blocks import BadBlock, RawFileError
+from ofbe_data.freeliving.epochs import (
+    EpochFileError,
+    EpochTable,
+    idle_sleep,
+    parse_epoch_csv,
+    read_epoch_csv,
+)
 from ofbe_data.freeliving.ggir import (
     QC_DONE,
     QC_DONE_NO_TEMPERATURE,
@@ -29,6 +47,9 @@ from ofbe_data.freeliving.ggir import (
     fit_sphere,
     ggir_calibrate,
 )
+from ofbe_data.freeliving.ofbe import OfbeResult, OfbeSettings, ofbe_calibrate
+from ofbe_data.freeliving.raw import IdleSleep, RawEpochs, read_raw_epochs
+from ofbe_data.freeliving.wearables import MissingReaderError
 
 __all__ = [
     "QC_DONE",
@@ -39,13 +60,23 @@ __all__ = [
     "QC_NO_STILL",
     "QC_SPHERE_NOT_POPULATED",
     "QC_TOO_SHORT",
+    "BadBlock",
     "EpochFileError",
     "EpochTable",
     "GgirResult",
     "GgirSettings",
+    "IdleSleep",
+    "MissingReaderError",
+    "OfbeResult",
+    "OfbeSettings",
+    "RawEpochs",
+    "RawFileError",
     "apply_ggir",
     "fit_sphere",
     "ggir_calibrate",
+    "idle_sleep",
+    "ofbe_calibrate",
     "parse_epoch_csv",
     "read_epoch_csv",
+    "read_raw_epochs",
 ]

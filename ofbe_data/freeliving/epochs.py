@@ -14,6 +14,10 @@ which :func:`~ofbe_data.freeliving.ggir.ggir_calibrate` then takes as they are.
 Every cell of a column read must be a plain decimal number (``-0.25``, ``1e-3``); an empty
 cell, ``NA``, ``nan`` or text is an error naming the file, the line and the column. Blank
 lines are skipped.
+
+:func:`idle_sleep` marks the epochs a device wrote while it was not measuring (ActiGraph's
+idle-sleep mode repeats its last sample; other devices write zeros), which ``--mode ofbe``
+leaves out.
 """
 
 from __future__ import annotations
@@ -81,6 +85,9 @@ class EpochTable:
     ggir_spheredata
         True when the epochs are GGIR's own ``spheredata`` (its still epochs, the recording's
         first epoch already dropped), as the ``Euclidean Norm`` column marks them.
+    time_s
+        Shape (n,): time of each epoch's first sample, s on the device clock (raw files read by
+        :mod:`~ofbe_data.freeliving.raw`); None when the epochs come without times.
     """
 
     path: str
@@ -88,6 +95,7 @@ class EpochTable:
     sd_g: np.ndarray
     temperature_c: np.ndarray | None = None
     ggir_spheredata: bool = False
+    time_s: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         n = len(self.mean_g)
@@ -97,6 +105,8 @@ class EpochTable:
         if self.temperature_c is not None and np.shape(self.temperature_c) != (n,):
             raise ValueError(f"{self.path}: expected temperature_c of shape ({n},), found "
                              f"{np.shape(self.temperature_c)}")
+        if self.time_s is not None and np.shape(self.time_s) != (n,):
+            raise ValueError(f"{self.path}: expected time_s of shape ({n},), found {np.shape(self.time_s)}")
 
     @property
     def n(self) -> int:
@@ -205,3 +215,31 @@ def parse_epoch_csv(data: bytes, path: str | Path) -> EpochTable:
         ggir_spheredata=SPHEREDATA_MARK in [n.strip() for n in first],
     )
 
+
+def idle_sleep(epochs: EpochTable) -> np.ndarray:
+    """Which epochs a device wrote while it was not measuring (idle-sleep or constant windows).
+
+    An epoch is idle when its standard deviation is exactly 0 on every axis (a constant
+    signal: no accelerometer is that quiet), when its three means are exactly 0 (the value
+    some devices write when idle), or when its three means are bit-identical to those of the
+    epoch before or after it (a run of repeated means: ActiGraph's idle-sleep mode repeats
+    its last sample until it wakes). A real still epoch has noise of a few mg, so two
+    consecutive real epochs never agree to every bit.
+
+    Parameters
+    ----------
+    epochs
+        The epochs of one recording, in time order.
+
+    Returns
+    -------
+    np.ndarray
+        Shape (n,), bool: True for an idle epoch.
+    """
+    means, sds = epochs.mean_g, epochs.sd_g
+    idle = np.all(sds == 0.0, axis=1) | np.all(means == 0.0, axis=1)
+    if epochs.n > 1:
+        repeated = np.all(means[1:] == means[:-1], axis=1)
+        idle[1:] |= repeated
+        idle[:-1] |= repeated
+    return idle

@@ -180,12 +180,12 @@ class _Fit:
     iterations: int
 
 
-def _sphere_error(means_g: np.ndarray) -> float:
+def sphere_error(means_g: np.ndarray) -> float:
     """Mean | ‖v‖ − 1 | over rows of ``means_g`` (shape (n, 3), g): GGIR's ``cal.error``."""
     return float(np.mean(np.abs(np.sqrt(np.sum(means_g**2, axis=1)) - 1.0)))
 
 
-def _use_temperature(temperature_c: np.ndarray | None) -> bool:
+def use_temperature(temperature_c: np.ndarray | None) -> bool:
     """GGIR's temperature checks (g.calibrate, after reading a block: ``use.temp`` becomes FALSE
     when ``mean(data[1:10, "temperature"]) > 120`` or ``sd(data[, "temperature"]) < 0.01``),
     applied to the epoch temperatures."""
@@ -359,7 +359,7 @@ def ggir_calibrate(epochs: EpochTable, settings: GgirSettings | None = None, *,
     """
     s = settings or GgirSettings()
     temp_available = epochs.temperature_c is not None
-    use_temp = _use_temperature(epochs.temperature_c)
+    use_temp = use_temperature(epochs.temperature_c)
     means, sds = epochs.mean_g, epochs.sd_g
     considered = np.ones(epochs.n, dtype=bool)
     if not epochs.ggir_spheredata:
@@ -379,11 +379,11 @@ def ggir_calibrate(epochs: EpochTable, settings: GgirSettings | None = None, *,
     x = means[still]
     temps = epochs.temperature_c[still] if use_temp and epochs.temperature_c is not None else None
     temp_mean = float(np.mean(temps)) if temps is not None else None
-    start = _sphere_error(x)
+    start = sphere_error(x)
     if s.sphere_check and not _sphere_populated(x, s.sphere_crit_g):
         return _not_calibrated(epochs, QC_SPHERE_NOT_POPULATED, use_temp, used_hours, still, start, temp_mean)
     scale, offset, temp_offset, iterations = fit_sphere(x, temps)
-    end = _sphere_error(apply_ggir(x, temps, scale, offset, temp_offset, temp_mean))
+    end = sphere_error(apply_ggir(x, temps, scale, offset, temp_offset, temp_mean))
     if not all(map(math.isfinite, (end, *scale, *offset, *temp_offset))):
         # GGIR stops with an R error here (lm.wfit refuses NaN); ofbe reports "not decreased"
         return _not_calibrated(epochs, QC_NOT_DECREASED, use_temp, used_hours, still, start, temp_mean)

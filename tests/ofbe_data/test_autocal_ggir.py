@@ -233,7 +233,8 @@ def test_the_command_writes_ggirs_numbers_and_names_a_bad_file(tmp_path: Path, c
     assert main(argv) == 1
     err = capsys.readouterr().err
     assert f"ofbe-autocal: error: {data / 'b-broken.csv'}:2: expected 6 fields" in err
-    assert f"ofbe-autocal: error: {data / 'd.cwa'}: expected an epoch csv" in err
+    assert (f"ofbe-autocal: error: {data / 'd.cwa'} (byte 0): expected an Axivity .cwa header ('MD', 1024 "
+            "bytes), found 2 bytes") in err
     rows = _summary(out)
     assert [Path(r["file"]).name for r in rows] == ["a-spheredata.csv", "c-moving.csv"]
     a, c = rows
@@ -245,13 +246,13 @@ def test_the_command_writes_ggirs_numbers_and_names_a_bad_file(tmp_path: Path, c
     assert abs(float(a["cal_error_end_mg"]) / 1000 - GGIR["cal.error.end"][0]) < ERROR_TOL_G
     assert c["qc"] == NO_STILL and c["calibrated"] == "false" and c["cal_error_start_mg"] == ""
     assert [c[f"scale_{x}"] for x in "xyz"] == ["1.0"] * 3 and c["temp_mean_c"] == ""
+    new = [k for k in a if k.startswith(("ofbe_", "a_")) or k.endswith("_se") or k in ("device", "start_utc")]
+    assert len(new) == 2 + 15 + 24 and all(r[k] == "" for r in rows for k in new)  # GGIR gives no SEs
     first = (out / "summary.csv").read_bytes()
     assert main(argv) == 1 and (out / "summary.csv").read_bytes() == first  # the same bytes again
 
 
-def test_the_command_refuses_what_it_cannot_do_yet(tmp_path: Path, capsys) -> None:
-    assert main([str(SPHERE), "--out", str(tmp_path / "o")]) == 2  # --mode ofbe is the default
-    assert "--mode ofbe: not yet available" in capsys.readouterr().err
+def test_the_command_refuses_a_missing_file_and_a_bad_value(tmp_path: Path, capsys) -> None:
     assert main([str(tmp_path / "missing.csv"), "--out", str(tmp_path / "o"), "--mode", "ggir"]) == 2
     assert "missing.csv: no such file or folder" in capsys.readouterr().err
     assert main([str(SPHERE), "--out", str(tmp_path / "o"), "--mode", "ggir", "--still-sd-g", "-1"]) == 2
