@@ -16,7 +16,9 @@ Output: JSON (default) or a table, one entry per device file: the bias in m/s² 
 methods that have one, its standard deviation. The model's training domain (devices, sample
 rates, window length) is printed with it: a device the model never saw gets a warning, a
 sample rate outside the trained range no estimate unless ``--allow-outside-domain``, and a
-window whose ‖mean‖ is far from g_local (a unit mistake) none at all. Exit 0 when every file
+window whose ‖mean‖ is far from g_local (a unit mistake) none at all, nor a recording that
+``ofbe-label`` would reject (garbled, an implausible rate or norm, saturated, clipped, dead or
+stuck axes: the same checks, reported with its reason and words). Exit 0 when every file
 got an estimate, 1 when some could not (a one-line reason each; the others are still printed), 2 on a usage
 error.
 """
@@ -39,7 +41,15 @@ from ofbe_data.io.formats.ofbe_logger import read_ofbe_logger
 from ofbe_data.io.gravity import G0 as STANDARD_GRAVITY
 from ofbe_data.io.manifest import MANIFEST_NAME, load_manifest
 from ofbe_data.io.recording import Recording
-from ofbe_data.labelling.checks import norm_problem
+from ofbe_data.labelling.checks import (
+    MIN_CLIP_RATIO,
+    clipped_samples,
+    norm_problem,
+    rate_problem,
+    skipped_lines_problem,
+    typical_norm_problem,
+)
+from ofbe_data.labelling.labels import GARBLED, IMPLAUSIBLE_NORM, IMPLAUSIBLE_RATE, SATURATED, LabelParams
 from ofbe_data.labelling.stationarity import StaticParams, check_static, longest_run
 from ofbe_model.deploy.final import OFBENET_NAME, PRIOR_NAME, SET_FORMAT, SET_NAME
 from ofbe_model.estimators.base import Estimator, EstimatorError
@@ -247,14 +257,14 @@ def targets(paths: Sequence[str | Path], device: str | None, g_local: float | No
     return out
 
 
-def first_still_window(rec: Recording, length: int, margin_s: float = 1.0,
-                       static: StaticParams | None = None) -> tuple[np.ndarray | None, int, str]:
-    """The first ``length`` samples of the longest still run of a recording.
+def still_run(rec: Recording, margin_s: float = 1.0, static: StaticParams | None = None) -> tuple[int, int]:
+    """The longest still run of a recording less ``margin_s`` where it borders motion: the
+    segment ``ofbe-label`` takes from a file without taps.
 
     Returns
     -------
-    window, run_samples, problem
-        (length, 3) m/s² or None with the reason.
+    start, stop
+        Half-open sample range (``stop <= start``: no still part longer than the margins).
     """
     check = check_static(rec.acc, rec.fs_hz, static or StaticParams())
     a, b = longest_run(check.static)
@@ -263,10 +273,109 @@ def first_still_window(rec: Recording, length: int, margin_s: float = 1.0,
         a += margin
     if b < rec.n:
         b -= margin
+    return a, b
+
+
+def first_still_window(rec: Recording, length: int, margin_s: float = 1.0,
+                       static: StaticParams | None = None) -> tuple[np.ndarray | None, int, str]:
+    """The first ``length`` samples of the longest still run of a recording (:func:`still_run`).
+
+    Returns
+    -------
+    window, run_samples, problem
+        (length, 3) m/s² or None with the reason.
+    """
+    a, b = still_run(rec, margin_s, static)
     n = max(0, b - a)
     if n < length:
         return None, n, f"{n} still samples, at least {length} needed"
     return rec.acc[a:a + length], n, ""
+
+
+def _in_counts(rec: Recording) -> bool:
+    """Whether the file holds raw counts scaled by a stated lsb_per_g (as ``ofbe-label`` judges)."""
+    return rec.format == "ofbe-logger" or rec.header.get("acc_unit") == "counts"
+
+
+def file_problem(rec: Recording, g: float, params: LabelParams | None = None) -> str | None:
+    """What makes ``ofbe-label`` reject a whole file, as ``"reason: detail"``, or None.
+
+    The same checks and words (:mod:`ofbe_data.labelling.checks`): too many skipped lines
+    (``garbled``), a sample rate no logger has (``implausible-rate``), readings whose typical
+    norm is no resting norm (``implausible-norm``). ``params``: ``ofbe-label``'s defaults when None.
+    """
+    params = params or LabelParams()
+    garbled = skipped_lines_problem(rec.diagnostics, params.max_skipped_fraction, rec.header)
+    if garbled is not None:
+        return f"{GARBLED}: {garbled}"
+    rate = rate_problem(rec.fs_hz, rec.nominal_rate_hz)
+    if rate is not None and rate[1]:
+        return f"{IMPLAUSIBLE_RATE}: {rate[0]}"
+    norm = typical_norm_problem(rec.acc, g, params.max_norm_deviation, _in_counts(rec))
+    if norm is not None:
+        return f"{IMPLAUSIBLE_NORM}: {norm}"
+    return None
+
+
+def segment_problem(rec: Recording, start: int, stop: int, where: str = "the stationary segment",
+                    ) -> str | None:
+    """Saturated, clipped, dead or stuck samples in ``rec`` [start, stop), as
+    ``"saturated: detail"`` in ``ofbe-label``'s words, or None.
+
+    Parameters
+    ----------
+    rec
+        The recording.
+    start, stop
+        Half-open sample range (the still run, or the window the model sees).
+    where
+        How the detail names the range.
+    """
+    flags = rec.saturated[start:stop]
+    sat = int(flags.sum())
+    if sat:
+        first = int(rec.line[start + int(np.argmax(flags))])
+        return f"{SATURATED}: {sat} saturated samples in {where} (first at line {first})"
+    if stop - start < 2:
+        return None
+    scale = rec.full_scale
+    clipped = clipped_samples(rec.acc[start:stop], bounds=None if scale is None else (scale.low, scale.high))
+    if clipped is None:
+        return None
+    count, k, value, whole = clipped
+    if whole:
+        return (f"{SATURATED}: the {'xyz'[k]} axis reads {value:.5g} m/s² on every sample of {where} while "
+                "the others vary: clipped at the logger's range, or stuck (record with a wider range)")
+    return (f"{SATURATED}: {count} of {stop - start} samples of {where} sit at the same extreme "
+            f"{'xyz'[k]} value {value:.5g} m/s², more than {MIN_CLIP_RATIO:g} times the value next to it: "
+            "clipping at the logger's range? (record with a wider range)")
+
+
+def plausibility_problem(rec: Recording, g: float, run: tuple[int, int], length: int) -> str | None:
+    """Why ``ofbe-label`` would reject this recording, judged as it judges a file without taps
+    (:func:`file_problem`, then :func:`segment_problem` on the still run), or why the first
+    ``length`` samples of that run, the window the model sees, are saturated or stuck; None
+    when neither.
+
+    Parameters
+    ----------
+    rec
+        The recording.
+    g
+        Local gravity, m/s².
+    run
+        Its still run, (start, stop) samples (:func:`still_run`).
+    length
+        Samples of the model's window.
+    """
+    bad = file_problem(rec, g)
+    a, b = run
+    if bad is not None or b <= a:
+        return bad  # no still part: no window either, which the caller reports
+    bad = segment_problem(rec, a, b)
+    if bad is None and b - a > length:
+        bad = segment_problem(rec, a, a + length, "the window the model sees")
+    return bad
 
 
 def trained_on(model: Estimator) -> str | None:
@@ -278,9 +387,9 @@ def trained_on(model: Estimator) -> str | None:
 def _screen(model: Estimator, t: Target, w: np.ndarray, allow_outside: bool, entry: dict[str, Any]) -> bool:
     """Plausibility and training-domain checks of one window; False when it gets no estimate."""
     assert t.recording is not None
-    norm = norm_problem(w.mean(axis=0), t.g_local)
+    norm = norm_problem(w.mean(axis=0), t.g_local, counts=_in_counts(t.recording))
     if norm is not None:
-        entry["error"] = f"implausible-norm: {norm}"
+        entry["error"] = f"{IMPLAUSIBLE_NORM}: {norm}"
         return False
     refusals, warns = domain_problems(getattr(model, "domain_", None), t.device, t.recording.fs_hz,
                                       window_direction(w))
@@ -299,8 +408,10 @@ def predict(model: Estimator, items: Sequence[Target], length: int, allow_outsid
             ) -> list[dict[str, Any]]:
     """One result per target: bias (and std) or the problem.
 
-    A window whose ‖mean‖ is implausible for its local gravity (a unit mistake, methods.md
-    §9) or whose sample rate lies outside the model's training domain gets no estimate (the
+    A recording that ``ofbe-label`` would reject (:func:`plausibility_problem`: garbled,
+    implausible rate or norm, saturated, clipped, dead or stuck axes, in its words) gets no
+    estimate, nor a window whose ‖mean‖ is implausible for its local gravity (a unit mistake, methods.md
+    §9) or whose sample rate lies outside the model's training domain (the
     latter unless ``allow_outside``, and then the result carries ``outside_domain`` with the
     reasons): a sample rate, device or gravity direction the model was not trained on.
     """
@@ -311,11 +422,16 @@ def predict(model: Estimator, items: Sequence[Target], length: int, allow_outsid
         if t.recording is None:
             entry["error"] = t.problem
         else:
-            w, n, problem = first_still_window(t.recording, length)
+            a, b = still_run(t.recording)
+            n = max(0, b - a)
+            w = t.recording.acc[a:a + length] if n >= length else None
             entry["still_samples"] = n
             entry["fs_hz"] = round(float(t.recording.fs_hz), 6)
-            if w is None:
-                entry["error"] = problem
+            implausible = plausibility_problem(t.recording, t.g_local, (a, b), length)
+            if implausible is not None:
+                entry["error"] = implausible
+            elif w is None:
+                entry["error"] = f"{n} still samples, at least {length} needed"
             elif _screen(model, t, w, allow_outside, entry):
                 ready.append(len(results))
                 windows.append(w)

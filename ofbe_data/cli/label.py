@@ -15,7 +15,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from ofbe_data.core.atomic import folders_under, remove_new_empty_folders
-from ofbe_data.core.cli import add_jobs, add_params, add_scheduler, command, fail, io_failure
+from ofbe_data.core.cli import add_jobs, add_params, add_scheduler, command, fail, io_failure, with_examples
 from ofbe_data.core.errors import OfbeError
 from ofbe_data.io.manifest import MANIFEST_NAME
 from ofbe_data.labelling.batch import (
@@ -53,7 +53,21 @@ def _parser() -> argparse.ArgumentParser:
                    help="also draw each labelled session: <out>/<campaign>/<session>.png with ‖f‖ and the "
                         "three axes over time and every labelled interval (pose) shaded and numbered")
     p.add_argument("--quiet", action="store_true", help="no progress bar, no summary")
-    return p
+    p.add_argument("--verbose", action="store_true",
+                   help="also print each session's warnings and notes (information on a good session, such "
+                        "as the poses found and the threshold; not counted as warnings); both are in "
+                        "<session>.rejected.json either way")
+    return with_examples(
+        p, "ofbe-label mine/raw/lab/unit-07 --out mine/labels --plots       # one session, with a figure",
+        "ofbe-label raw/rotated --out mine/labels --params params.yaml --jobs 2   # the pipeline's settings",
+        "ofbe-label mine/raw/lab --out mine/labels --verbose                 # every warning and note")
+
+
+def session_lines(labels: SessionLabels) -> list[str]:
+    """``--verbose``: one line per warning (``warning: …``) and per note (plain) of a session."""
+    where = f"{labels.manifest.campaign}/{labels.manifest.session}"
+    return ([f"{PROG}: warning: {where}: {w}" for w in labels.warnings]
+            + [f"{PROG}: {where}: {n}" for n in labels.notes])
 
 
 def _count(n: int, what: str) -> str:
@@ -63,7 +77,8 @@ def _count(n: int, what: str) -> str:
 
 def summary(done: Sequence[SessionLabels], failed: int) -> str:
     """The run's one-line summary: sessions, labels (of how many recordings, how many of them
-    poses of multi-position recordings), rejections and warnings.
+    poses of multi-position recordings), rejections and warnings (notes, which are information,
+    are not counted).
 
     A label is one row: a (recording, device) pair, or one pose of it in a multi-position
     recording, so 18 poses of one recording read "18 labels of 1 recording (18 poses)".
@@ -122,6 +137,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             plot_session(s, Path(args.out) / s.manifest.campaign / f"{s.manifest.session}.png")
     rows = sum(len(s.rows) for s in done)
     rejected = [r for s in done for r in s.rejections]
+    if args.verbose:
+        for s in done:
+            for line in session_lines(s):
+                print(line, file=sys.stderr)
     if not args.quiet:
         for folder in skipped:
             print(f"ofbe-label: note: {folder}: no {MANIFEST_NAME} in it, not a session (skipped)",

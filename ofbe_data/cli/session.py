@@ -33,16 +33,16 @@ import numpy as np
 
 from ofbe_data.cli.session_init import (
     DATA_SUFFIXES,
-    _devices,
     assign_devices,
     data_files,
     group_recordings,
+    init_devices,
     manifest_text,
     power_cycle_of,
     sanitise,
 )
 from ofbe_data.core.atomic import write_bytes_atomic
-from ofbe_data.core.cli import EXIT_DATA, EXIT_OK, EXIT_USAGE, add_params, command, fail
+from ofbe_data.core.cli import EXIT_DATA, EXIT_OK, EXIT_USAGE, add_params, command, fail, with_examples
 from ofbe_data.core.errors import OfbeError, OutputExistsError
 from ofbe_data.io.detect import sniff_text
 from ofbe_data.io.detect_result import Detection, Hints, show_value
@@ -65,7 +65,7 @@ from ofbe_data.io.yamlio import YamlDocument
 from ofbe_data.labelling.batch import UsageError, expand_sessions, skipped_folders
 from ofbe_data.labelling.checks import MAX_LEVEL_TILT_DEG
 from ofbe_data.labelling.labels import SessionLabels, label_params_from, label_session, read_label_section
-from ofbe_data.labelling.next_pose import labelled_fit, report_lines
+from ofbe_data.labelling.pose_advice import labelled_fit, noise_of_rows, report_lines
 
 PROG = "ofbe-session"
 REFERENCE_FORMATS = ("mscip-csv", "mscip-bin")
@@ -157,7 +157,15 @@ def _parser() -> argparse.ArgumentParser:
                        "reject and why. Exit 0 when every recording would be labelled.")
     c.add_argument("dirs", nargs="+", help="session folders (or campaign folders of sessions)")
     add_params(c, "label", "the labelling parameters (e.g. params.yaml)")
-    return p
+    with_examples(i, "ofbe-session init mine/raw/lab/unit-07 --kind multi-position --site 48.15,520",
+                  "ofbe-session init mine/raw/lab/unit-07 --kind multi-position --rate 100 --unit g   # "
+                  "no time column",
+                  "ofbe-session init mine/raw/lab/unit-07 --kind rotated --reference memsense --force")
+    with_examples(c, "ofbe-session check mine/raw/lab/unit-07",
+                  "ofbe-session check mine/raw/lab --params params.yaml      # every session, the pipeline's "
+                  "settings")
+    return with_examples(p, "ofbe-session init mine/raw/lab/unit-07 --kind multi-position --site 48.15,520",
+                         "ofbe-session check mine/raw/lab/unit-07")
 
 
 # --------------------------------------------------------------------------- init
@@ -241,7 +249,7 @@ def _init(args: argparse.Namespace) -> int:
             print(f"  {line}")
     models = dict(args.model)
     try:
-        devices, ids = _devices(by_device, dets, models)
+        devices, ids = init_devices(by_device, dets, models)
     except UsageError as exc:
         return fail(PROG, str(exc), EXIT_USAGE)
     recordings = [(rid, {sub: rel for dev, rel in files_of.items() for sub in ids[dev]})
@@ -373,7 +381,8 @@ def _file_lines(m: SessionManifest, rid: str, dev: str, rec: Recording, labels: 
 def _next_pose_lines(m: SessionManifest, labels: SessionLabels, params: Any) -> list[str]:
     """Per DUT with labelled poses: the model the label writes with its standard errors and why
     (the label's own columns, so that check and label agree), and the next orientations to record
-    (methods.md §8, :func:`ofbe_data.labelling.next_pose.report_lines`)."""
+    (methods.md §8, :func:`ofbe_data.labelling.pose_advice.report_lines`), expected with the label's own
+    error model."""
     out: list[str] = []
     for dev in m.duts:
         rows = [r for r in labels.rows if r["device"] == dev.id]
@@ -385,7 +394,7 @@ def _next_pose_lines(m: SessionManifest, labels: SessionLabels, params: Any) -> 
             warnings.simplefilter("ignore")
             out += report_lines(dev.id, means, m.g_local, rms,
                                 getattr(params, "multi_position_max_condition", 1000.0),
-                                fitted=labelled_fit(rows[0]))
+                                fitted=labelled_fit(rows[0]), noise=noise_of_rows(rows))
     return out
 
 
@@ -429,6 +438,8 @@ def _check_one(folder: Path, params: Any) -> bool:
                                                    for d in r.files)]
     for w in other:
         print(f"  warning: {w}")
+    for note in labels.notes:  # information (poses found, threshold), not a warning
+        print(f"  {note}")
     if m.kind == "multi-position":
         for line in _next_pose_lines(m, labels, params):
             print(f"  {line}")

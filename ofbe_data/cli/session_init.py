@@ -167,7 +167,7 @@ def _device(dev: str, dets: list[Detection], models: dict[str, str], part: str =
     return _Device(dev, "dut", first.format, model, entry, evidence, notes)
 
 
-def _devices(by_device: dict[str, list[str]], dets: dict[str, Detection], models: dict[str, str]
+def init_devices(by_device: dict[str, list[str]], dets: dict[str, Detection], models: dict[str, str]
              ) -> tuple[list[_Device], dict[str, list[str]]]:
     """The manifest's devices, and the device ids each ``--device`` (or ``dut``) became: one per
     accelerometer triad of its files (``dut-1``, ``dut-2`` for a file with two)."""

@@ -6,7 +6,16 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-from ofbe_data.core.cli import EXIT_DATA, EXIT_USAGE, add_jobs, add_scheduler, command, fail, io_failure
+from ofbe_data.core.cli import (
+    EXIT_DATA,
+    EXIT_USAGE,
+    add_jobs,
+    add_scheduler,
+    command,
+    fail,
+    io_failure,
+    with_examples,
+)
 from ofbe_data.core.errors import OfbeError
 from ofbe_data.core.scheduler import SchedulerError, TaskError
 
@@ -41,6 +50,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     add_scheduler(parser)
     parser.add_argument("--force", action="store_true", help="replace an existing --out folder")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    with_examples(parser,
+                  "ofbe-simulate tiny-rotated --out raw/my-tiny            # a built-in profile",
+                  "ofbe-simulate rotated --out raw/rot-seed7 --seed 7 --jobs 2",
+                  "ofbe-simulate lab.yaml --out raw/lab-2026          # your config: a base profile + keys",
+                  "ofbe-simulate free-living --out raw/wear --jobs 2  # 50 week-long wearable recordings")
     args = parser.parse_args(argv)
     if args.jobs < 1:
         return fail(parser.prog, f"--jobs: expected an integer >= 1, found {args.jobs}", EXIT_USAGE)

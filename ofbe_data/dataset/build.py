@@ -25,12 +25,11 @@ from tqdm import tqdm
 
 from ofbe_data.core.atomic import atomic_directory
 from ofbe_data.core.errors import ConfigError, OfbeError, OutputExistsError
-from ofbe_data.core.parallel import iter_ordered
 from ofbe_data.dataset.chunks import Chunk
 from ofbe_data.dataset.fidelity import label_fidelity
 from ofbe_data.dataset.splits import PROTOCOLS, SplitParams, assign_folds
 from ofbe_data.dataset.store import DEFAULT_SHARD_WINDOWS, DatasetInfo, fold_column
-from ofbe_data.dataset.windows import SegmentError, WindowParams, iter_windows, n_windows, session_chunks
+from ofbe_data.dataset.windows import SegmentError, WindowParams, iter_windows, n_windows
 from ofbe_data.dataset.writer import WindowWriter
 from ofbe_data.io.typedconfig import from_plain
 from ofbe_data.labelling.store import read_labels
@@ -159,24 +158,12 @@ class BuildResult:
     n_shards: int = 1
 
 
-def _session_task(args: tuple[Path, list[dict[str, Any]], WindowParams]) -> list[list[Chunk]]:
-    return session_chunks(*args)
-
-
 def _chunks(labels: pd.DataFrame, raw_dir: Path, params: WindowParams, jobs: int,
             scheduler: str) -> Iterator[tuple[int, list[Chunk]]]:
     """Each label row's windows as stored HDF5 chunks, compressed in the workers
     (:func:`~ofbe_data.dataset.windows.iter_windows` with ``compressed``) on ``scheduler``: the
     local process pool, or Dask (sessions streamed in order, a bounded number in flight)."""
-    if scheduler == "processes":
-        yield from iter_windows(labels, raw_dir, params, jobs=jobs, compressed=True)
-        return
-    groups = [(raw_dir / str(session), list(frame.index), frame.to_dict("records"))
-              for session, frame in labels.groupby("session", sort=False)]
-    results = iter_ordered(_session_task, [(folder, rows, params) for folder, _, rows in groups], jobs=jobs,
-                           scheduler=scheduler, name=lambda task: f"session {task[0]}")
-    for (_, index, _), windows in zip(groups, results, strict=True):
-        yield from zip(index, windows, strict=True)
+    yield from iter_windows(labels, raw_dir, params, jobs=jobs, compressed=True, scheduler=scheduler)
 
 
 def _describe(raw_dir: Path, labels: pd.DataFrame, simulated: bool) -> str:

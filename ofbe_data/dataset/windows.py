@@ -13,9 +13,7 @@ that streams windows to disk never holds more than a few sessions in memory.
 
 from __future__ import annotations
 
-from collections import deque
 from collections.abc import Iterator, Mapping, Sequence
-from concurrent.futures import Future, ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -25,6 +23,7 @@ import pandas as pd
 from numpy.lib.stride_tricks import sliding_window_view
 
 from ofbe_data.core.errors import OfbeError
+from ofbe_data.core.parallel import iter_ordered
 from ofbe_data.dataset.chunks import Chunk, compress_windows
 from ofbe_data.io.formats import read_device_file
 from ofbe_data.io.manifest import SessionManifest, load_manifest
@@ -178,7 +177,8 @@ def _session_chunks_job(args: tuple[Path, list[dict[str, Any]], WindowParams]) -
 
 
 def iter_windows(labels: pd.DataFrame, raw_dir: str | Path, params: WindowParams, jobs: int = 1,
-                 ahead: int = 2, compressed: bool = False) -> Iterator[tuple[int, Any]]:
+                 ahead: int = 2, compressed: bool = False, scheduler: str = "processes"
+                 ) -> Iterator[tuple[int, Any]]:
     """Windows of every label row, session by session, streamed.
 
     Parameters
@@ -191,12 +191,15 @@ def iter_windows(labels: pd.DataFrame, raw_dir: str | Path, params: WindowParams
     params
         Window length and stride.
     jobs
-        Worker processes (1 reads in this process).
+        Workers (1 with the local pool: read in this process).
     ahead
         Sessions in flight per worker beyond the one being consumed: bounds memory.
     compressed
         Yield each row's windows as stored HDF5 chunks (:func:`session_chunks`: the workers
         compress them) instead of samples.
+    scheduler
+        Where the workers run (:mod:`ofbe_data.core.scheduler`): ofbe's own process pool, whose
+        Ctrl-C is one line, or Dask.
 
     Yields
     ------
@@ -210,26 +213,11 @@ def iter_windows(labels: pd.DataFrame, raw_dir: str | Path, params: WindowParams
     for session, frame in labels.groupby("session", sort=False):
         groups.append((raw_dir / str(session), list(frame.index), frame.to_dict("records")))
     read, job = (session_chunks, _session_chunks_job) if compressed else (session_windows, _session_job)
-    if jobs <= 1:
+    if jobs <= 1 and scheduler == "processes":
         for folder, index, rows in groups:
             yield from zip(index, read(folder, rows, params), strict=True)
         return
-    with ProcessPoolExecutor(max_workers=jobs) as pool:
-        pending: deque[tuple[list[Any], Future[list[Any]]]] = deque()
-        todo = iter(groups)
-        limit = jobs * (1 + ahead)
-
-        def fill() -> None:
-            while len(pending) < limit:
-                item = next(todo, None)
-                if item is None:
-                    return
-                folder, index, rows = item
-                pending.append((index, pool.submit(job, (folder, rows, params))))
-
-        fill()
-        while pending:
-            index, fut = pending.popleft()
-            result = fut.result()
-            fill()
-            yield from zip(index, result, strict=True)
+    results = iter_ordered(job, [(folder, rows, params) for folder, _, rows in groups], jobs=jobs,
+                           ahead=ahead, scheduler=scheduler, name=lambda task: f"session {task[0]}")
+    for (_, index, _), result in zip(groups, results, strict=True):
+        yield from zip(index, result, strict=True)

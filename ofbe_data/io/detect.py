@@ -25,22 +25,41 @@ import numpy as np
 
 from ofbe_data.core.errors import RawFormatError
 from ofbe_data.io.detect_banner import read_banner
-from ofbe_data.io.detect_columns import _given_parts, _named_parts, _names, _positional_parts, _time_column
+from ofbe_data.io.detect_columns import (
+    choose_time_column,
+    column_names,
+    given_parts,
+    named_parts,
+    positional_parts,
+)
 from ofbe_data.io.detect_layout import (
     LAYOUT_LINES,
     MAX_DATA_LINES,
     Layout,
+    TextLines,
     find_layout,
     read_numbers,
-    split_lines,
 )
 from ofbe_data.io.detect_names import TEMP_NAMES, ColumnName, parse_name
 from ofbe_data.io.detect_result import Decision, Detection, Hints, Part
-from ofbe_data.io.detect_time import TIME_SCALE, decide_time_unit, preamble_rate, step_stats
-from ofbe_data.io.detect_units import DetectionError, decide_acc_unit, decide_gyro_unit, fmt_num
+from ofbe_data.io.detect_time import (
+    TIME_SCALE,
+    decide_time_unit,
+    lost_precision,
+    preamble_rate,
+    stamp_texts,
+    step_stats,
+)
+from ofbe_data.io.detect_units import (
+    DetectionError,
+    decide_acc_unit,
+    decide_gyro_unit,
+    decide_temperature_unit,
+    fmt_num,
+)
 from ofbe_data.io.device_options import BinOptions
 from ofbe_data.io.formats import read_device_file
-from ofbe_data.io.formats.filebytes import MAX_FILE_BYTES, read_file_bytes
+from ofbe_data.io.formats.filebytes import MAX_FILE_BYTES, is_blank, read_file_bytes
 from ofbe_data.io.formats.mscip_bin import decode_mscip
 from ofbe_data.io.manifest import CsvMapping, DeviceSpec
 
@@ -149,11 +168,16 @@ def _time(path: Path, lines: list[str], data: np.ndarray, base: dict[int, int], 
     if names and lay.unit_row is not None and names[t].unit and parse_name(names[t].raw).unit is None:
         tname += f" (its unit in line {lay.unit_row + 1})"
     first = base.get(t)
+    stamps = stamp_texts(lines, lay, t)
     td = decide_time_unit(path, data[:, t], tname, names[t].unit if names else None, kind, hints.time_unit,
-                          None if first is None else float(first))
-    det.add("time_unit", td.unit, td.evidence)
+                          None if first is None else float(first), stamps)
+    lost = None if td.unit == "samples" else lost_precision(stamps, data[:, t], t in base)
+    lost_note = f"; {lost.note(td.unit)}" if lost is not None else ""  # the time unit's and rate's evidence
+    det.add("time_unit", td.unit, td.evidence + lost_note)
     if td.warning:
         det.warnings.append(td.warning)
+    if lost is not None:
+        det.warnings.append(lost.warning(tname, td.unit, td.rate_hz))
     if td.unit == "samples":
         if rate is None:
             raise DetectionError(path, f"{tname} is a sample index and the file states no rate", "--rate HZ")
@@ -165,8 +189,8 @@ def _time(path: Path, lines: list[str], data: np.ndarray, base: dict[int, int], 
         if abs(td.rate_hz / rate - 1.0) > 0.02:
             det.warnings.append(f"the measured rate {fmt_num(td.rate_hz)} Hz is "
                                 f"{100 * (td.rate_hz / rate - 1):+.3g} % from the nominal {fmt_num(rate)} Hz")
-        return td.unit, rate, td.rate_evidence()
-    return td.unit, None, td.rate_evidence()
+        return td.unit, rate, td.rate_evidence() + lost_note
+    return td.unit, None, td.rate_evidence() + lost_note
 
 
 def _by_index(lines: list[str], lay: Layout, det: Detection) -> bool:
@@ -212,7 +236,7 @@ def _sniff_csv(path: Path, lines: list[str], hints: Hints) -> Detection:
     det.add("rows", det.rows, f"data lines from line {lay.data_start + 1}"
                               + (f"; {parsed - det.rows} unreadable" if parsed > det.rows else "")
                               + ("; only the first lines were read" if parsed >= MAX_DATA_LINES else ""))
-    names = _names(lay)
+    names = column_names(lay)
     skip_rows, header, comment = lay.skip_rows, bool(lay.names), lay.comment
     by_index = _by_index(lines, lay, det)
     if by_index:
@@ -221,20 +245,24 @@ def _sniff_csv(path: Path, lines: list[str], hints: Hints) -> Detection:
     temps = [i for i, n in enumerate(names) if n.base in TEMP_NAMES and i in lay.numeric]
     temp = temps[0] if len(temps) == 1 else None
     if hints.columns:
-        parts, t, kind, temp = _given_parts(path, lay, names, hints)
+        parts, t, kind, temp = given_parts(path, lay, names, hints)
         t_why = ""
     elif names:
-        parts, axes = _named_parts(path, names, lay)
-        t, kind, t_why = _time_column(path, data, lay, names, axes, hints, parts[0].acc)
+        parts, axes = named_parts(path, names, lay)
+        t, kind, t_why = choose_time_column(path, data, lay, names, axes, hints, parts[0].acc)
     else:
-        t, kind, t_why = _time_column(path, data, lay, [], set(), hints, [])
-        parts = _positional_parts(path, data, lay, t)
+        t, kind, t_why = choose_time_column(path, data, lay, [], set(), hints, [])
+        parts = positional_parts(path, data, lay, t)
     time_unit, rate, det.step_note = _time(path, lines, data, base, lay, names, t, kind, hints, det)
     median = step_stats(data[:, t]).median if t is not None and time_unit != "samples" else 0.0
     fs = (1.0 / (median * TIME_SCALE[time_unit]) if median > 0 else rate) or 100.0
     window = int(round(fs)) if fs > 10 else 100
     temp_unit = names[temp].unit if temp is not None and names else None
     temp_unit = temp_unit if temp_unit in ("C", "K", "F") else None
+    td = None  # a unit the values contradict, or that no unit settles: the column is left unmapped
+    if temp is not None:
+        td = decide_temperature_unit(data[:, temp], temp_unit, names[temp].raw if names else str(temp))
+        temp, temp_unit = (temp, td.unit) if td.unit is not None else (None, None)
 
     def key_of(i: int) -> str | int:
         return names[i].raw if names and not by_index else i
@@ -290,8 +318,12 @@ def _sniff_csv(path: Path, lines: list[str], hints: Hints) -> Detection:
             sample_rate_hz=rate, zero_counts=ad.zero_counts, range_g=banner.range_g,
             temperature_unit=(temp_unit or "C") if "temperature" in cols else "C", gyro_unit=gyro_unit)
         det.parts.append(Part(p.label, mapping, ad.direction))
-    if temp_unit is not None and temp_unit != "C":
-        det.add("temperature_unit", temp_unit, "the column name says so")
+    if td is not None:
+        det.warnings.extend([td.warning] if td.warning else [])
+        if td.unit is None:
+            det.add("temperature", "not mapped", td.evidence)
+        elif td.unit != "C":
+            det.add("temperature_unit", td.unit, td.evidence)
     det.mapping, det.direction = det.parts[0].mapping, det.parts[0].direction
     return det
 
@@ -352,16 +384,15 @@ def sniff_text(path: str | Path, hints: Hints = Hints()) -> Detection:  # noqa: 
         data = path.read_bytes()
     except OSError as exc:
         raise RawFormatError(path, "a readable file", exc.strerror or str(exc)) from None
-    if not data.strip():
+    if is_blank(data):
         raise RawFormatError(path, "data lines", "an empty file")
     binary = _binary(path, data, hints)
     if binary is not None:
+        del data  # the reader reads the file again: one copy at a time (bounded memory)
         _read_back(binary)
         return binary
-    text = data.decode("utf-8", errors="replace")
-    if text.startswith("\ufeff"):
-        text = text[1:]
-    lines = split_lines(text)
+    lines = TextLines(data)  # the lines, decoded one at a time: never the whole file as text
     det = _known_text(path, lines) or _sniff_csv(path, lines, hints)
+    del data, lines
     _read_back(det)
     return det

@@ -51,7 +51,7 @@ def _shared_prefix(a: str, b: str) -> str:
     return a[:n]
 
 
-def _time_column(path: Path, data: np.ndarray, lay: Layout, names: list[ColumnName], axes: set[int],
+def choose_time_column(path: Path, data: np.ndarray, lay: Layout, names: list[ColumnName], axes: set[int],
                  hints: Hints, acc: list[int]) -> tuple[int | None, str, str]:
     """The time column (None: there is none), its kind (``time``, ``index``, ``values``) and why."""
     if hints.time_column is not None:
@@ -139,7 +139,7 @@ def _labels(labels: list[str]) -> list[str]:
     return [str(k + 1) for k in range(len(labels))]
 
 
-def _named_parts(path: Path, names: list[ColumnName], lay: Layout) -> tuple[list[_PartColumns], set[int]]:
+def named_parts(path: Path, names: list[ColumnName], lay: Layout) -> tuple[list[_PartColumns], set[int]]:
     """Parts from the column names, and every column of a triad (never the time column)."""
     triads = find_triads(path, names, lay.numeric)
     accs, why = acceleration_triads(path, names, triads)
@@ -160,7 +160,7 @@ def _named_parts(path: Path, names: list[ColumnName], lay: Layout) -> tuple[list
     return parts, {c for tr in triads for c in tr.cols.values()}
 
 
-def _positional_parts(path: Path, data: np.ndarray, lay: Layout, t: int | None) -> list[_PartColumns]:
+def positional_parts(path: Path, data: np.ndarray, lay: Layout, t: int | None) -> list[_PartColumns]:
     """Parts of a file without a column line: triads of numeric columns in order after the time
     column; a triad whose mean at rest has no acceleration's norm (near zero) is the gyroscope."""
     rest = [c for c in lay.numeric if c != t]
@@ -198,7 +198,7 @@ def _positional_parts(path: Path, data: np.ndarray, lay: Layout, t: int | None) 
     return parts
 
 
-def _given_parts(path: Path, lay: Layout, names: list[ColumnName], hints: Hints
+def given_parts(path: Path, lay: Layout, names: list[ColumnName], hints: Hints
                  ) -> tuple[list[_PartColumns], int | None, str, int | None]:
     """The one part ``--columns`` gives, its time column and kind, and its temperature column."""
     assert hints.columns is not None
@@ -229,7 +229,7 @@ def _given_parts(path: Path, lay: Layout, names: list[ColumnName], hints: Hints
     return [part], t, kind, pos.get("temperature")
 
 
-def _names(lay: Layout) -> list[ColumnName]:
+def column_names(lay: Layout) -> list[ColumnName]:
     """The column names taken apart, with the units a unit row under them states."""
     names = [parse_name(n) for n in lay.names]
     if lay.units:

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import os
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -21,6 +21,7 @@ import numpy as np
 
 from ofbe_data.core.errors import RawFormatError
 from ofbe_data.io.detect_names import unit_of_text
+from ofbe_data.io.formats.filebytes import SCAN_BLOCK, line_starts
 from ofbe_data.io.manifest import WHITESPACE
 
 MAX_DATA_LINES = 500_000
@@ -44,6 +45,110 @@ def split_lines(text: str) -> list[str]:
     if lines and lines[-1] == "":
         lines.pop()
     return lines
+
+
+_BOM = b"\xef\xbb\xbf"
+_SOLID = np.ones(256, dtype=bool)  # bytes that make a line non-blank whatever follows: ASCII, not whitespace
+_SOLID[[*range(9, 14), *range(28, 33), *range(128, 256)]] = False
+
+
+class TextLines(Sequence[str]):
+    """A file's lines as :func:`split_lines` gives them from its text (UTF-8, invalid bytes replaced,
+    a leading byte-order mark dropped), each decoded from the bytes when it is asked for: a long
+    file is held once, as bytes, with the offset of every line (issue 36: as a list of strings it
+    took several times its size). Decoding line by line is decoding the whole: a line end is an
+    ASCII byte, which ends any invalid sequence. Questions about every line (:meth:`starting_with`,
+    :meth:`non_blank`, :meth:`first_bytes`) are answered over the bytes."""
+
+    def __init__(self, data: bytes) -> None:
+        self._data = data
+        starts = line_starts(data)
+        if data.startswith(_BOM):
+            starts[0] = len(_BOM)
+        self._starts = starts[:-1] if starts[-1] == len(data) else starts
+
+    def __len__(self) -> int:
+        return int(self._starts.shape[0])
+
+    def _span(self, i: int) -> tuple[int, int]:
+        """Bytes [start, end) of line ``i``, without its line end."""
+        a = int(self._starts[i])
+        e = int(self._starts[i + 1]) if i + 1 < len(self) else len(self._data)
+        if e > a and self._data[e - 1] == 0x0A:
+            e -= 1
+        if e > a and self._data[e - 1] == 0x0D:
+            e -= 1
+        return a, e
+
+    def __getitem__(self, k: int | slice) -> str | list[str]:  # type: ignore[override]
+        if isinstance(k, slice):
+            return [self[i] for i in range(*k.indices(len(self)))]
+        i = int(k) + len(self) if k < 0 else int(k)
+        if not 0 <= i < len(self):
+            raise IndexError(k)
+        a, e = self._span(i)
+        return self._data[a:e].decode("utf-8", errors="replace")
+
+    def first_bytes(self, k: int) -> np.ndarray:
+        """The ``k``-th byte of every line (0 past the end of the file; a line end counts), (L,) uint8."""
+        at = self._starts + k
+        np.minimum(at, len(self._data) - 1, out=at)
+        out = np.frombuffer(self._data, dtype=np.uint8)[at]
+        del at
+        tail = self._starts[-(k + 1):]  # only the last k + 1 lines can reach the end of the file
+        out[out.shape[0] - tail.shape[0]:][tail + k >= len(self._data)] = 0
+        return out
+
+    def starting_with(self, prefix: str) -> np.ndarray:
+        """Which lines start with ``prefix`` (ASCII, no line end in it), (L,) bool."""
+        out = np.ones(len(self), dtype=bool)
+        for k, byte in enumerate(prefix.encode("ascii")):
+            out &= self.first_bytes(k) == byte
+        return out
+
+    def non_blank(self) -> np.ndarray:
+        """Which lines hold more than whitespace (``line.strip()`` is not empty), (L,) bool: from an
+        ASCII byte that is no whitespace, else (other bytes) from the decoded line."""
+        b, n = np.frombuffer(self._data, dtype=np.uint8), len(self)
+        out = np.zeros(n, dtype=bool)
+        i = 0
+        while i < n:  # blocks of whole lines: temporaries of about SCAN_BLOCK bytes
+            j = min(n, max(i + 1, int(np.searchsorted(self._starts, self._starts[i] + SCAN_BLOCK))))
+            a, e = int(self._starts[i]), int(self._starts[j]) if j < n else len(self._data)
+            block = b[a:e]
+            cuts = self._starts[i:j] - a
+            out[i:j] = np.logical_or.reduceat(_SOLID[block], cuts)
+            other = np.flatnonzero(~out[i:j] & np.logical_or.reduceat(block >= 0x80, cuts)) + i
+            out[other] = [bool(self[int(k)].strip()) for k in other]
+            i = j
+        return out
+
+
+def starting_with(lines: Sequence[str], prefix: str) -> np.ndarray:
+    """Which of ``lines`` start with ``prefix`` (ASCII), (L,) bool; over the bytes for :class:`TextLines`."""
+    if isinstance(lines, TextLines):
+        return lines.starting_with(prefix)
+    return np.array([line.startswith(prefix) for line in lines], dtype=bool).reshape(-1)
+
+
+def non_blank(lines: Sequence[str]) -> np.ndarray:
+    """Which of ``lines`` hold more than whitespace, (L,) bool; over the bytes for :class:`TextLines`."""
+    if isinstance(lines, TextLines):
+        return lines.non_blank()
+    return np.array([bool(line.strip()) for line in lines], dtype=bool).reshape(-1)
+
+
+class _Indices:
+    """Line indices held as an int64 array, read back as ints (``body[k]``) and lists of ints."""
+
+    def __init__(self, values: np.ndarray) -> None:
+        self._values = values
+
+    def __len__(self) -> int:
+        return int(self._values.shape[0])
+
+    def __getitem__(self, k: int | slice) -> Any:
+        return self._values[k].tolist()
 
 
 def split_fields(line: str, delimiter: str) -> list[str]:
@@ -126,8 +231,8 @@ class Layout:
     unit_row: int | None = None
 
 
-def _comment_prefixes(lines: list[str]) -> list[str]:
-    return [p for p in COMMENT_PREFIXES if any(line.startswith(p) for line in lines)]
+def _comment_prefixes(lines: Sequence[str]) -> list[str]:
+    return [p for p in COMMENT_PREFIXES if starting_with(lines, p).any()]
 
 
 def _choose_delimiter(path: Path, sample: list[str]) -> tuple[str, int, list[int], bool, str]:
@@ -156,7 +261,7 @@ def _choose_delimiter(path: Path, sample: list[str]) -> tuple[str, int, list[int
                          f"none (e.g. {tail[0][:40]!r})" if tail else "no data lines")
 
 
-def find_layout(path: Path, lines: list[str]) -> tuple[Layout, list[tuple[str, Any, str]], list[str]]:
+def find_layout(path: Path, lines: Sequence[str]) -> tuple[Layout, list[tuple[str, Any, str]], list[str]]:
     """The layout of a generic csv file's lines.
 
     Parameters
@@ -164,7 +269,8 @@ def find_layout(path: Path, lines: list[str]) -> tuple[Layout, list[tuple[str, A
     path
         The file (for messages).
     lines
-        Its lines (byte-order mark removed).
+        Its lines (byte-order mark removed): a list, or :class:`TextLines` (whole-file passes over
+        the bytes).
 
     Returns
     -------
@@ -179,7 +285,11 @@ def find_layout(path: Path, lines: list[str]) -> tuple[Layout, list[tuple[str, A
         decimal commas between comma- or blank-separated fields.
     """
     prefixes = _comment_prefixes(lines)
-    body = [i for i, line in enumerate(lines) if line.strip() and not line.startswith(tuple(prefixes))]
+    solid = non_blank(lines)
+    for p in prefixes:
+        solid &= ~starting_with(lines, p)
+    body = _Indices(np.flatnonzero(solid))  # lines neither blank nor comments
+    del solid
     if not body:
         raise RawFormatError(path, "data lines", "none (only blank or comment lines)")
     found: list[tuple[str, Any, str]] = []
@@ -323,25 +433,41 @@ def unit_row_units(fields: list[str]) -> list[str | None] | None:
     return out if sum(u is not None for u in out) >= 2 else None
 
 
-def _prompt_prefix(lines: list[str], first: int, delim: str, is_data: Callable[[int], bool]
+_PROMPT_BYTES = np.zeros(256, dtype=bool)
+_PROMPT_BYTES[list(PROMPT_CHARS.encode())] = True
+
+
+def _prompt_lines(lines: Sequence[str], first: int, delim: str) -> list[int]:
+    """Lines from ``first`` on that start with a character of :data:`PROMPT_CHARS` other than the
+    delimiter (``-`` only doubled): the lines that may be comment or prompt lines."""
+    if isinstance(lines, TextLines):
+        c0, c1 = lines.first_bytes(0), lines.first_bytes(1)
+        maybe = _PROMPT_BYTES[c0] & ((c0 != ord("-")) | (c1 == ord("-")))
+        if len(delim) == 1:
+            maybe &= c0 != ord(delim)
+        maybe[:first] = False
+        return np.flatnonzero(maybe).tolist()
+    return [i for i in range(first, len(lines)) if (c := lines[i][:1]) and c in PROMPT_CHARS and c != delim
+            and (c != "-" or lines[i].startswith("--"))]
+
+
+def _prompt_prefix(lines: Sequence[str], first: int, delim: str, is_data: Callable[[int], bool]
                    ) -> tuple[str | None, str, list[str]]:
     """The comment prefix of the comment or prompt lines among the data (from line ``first``,
     0-based): the prefix the most of them share (``>>>``, ``>``, ``#``, ``%``, ``//``), its evidence,
     and warnings for lines that start with another prefix (the reader skips them as unreadable).
     A data line is never one of them, whatever its first character."""
     groups: dict[str, list[int]] = {}
-    for i in range(first, len(lines)):
-        line = lines[i]
-        c = line[:1]
-        if c and c in PROMPT_CHARS and c != delim and (c != "-" or line.startswith("--")) and not is_data(i):
-            groups.setdefault(c, []).append(i)
+    for i in _prompt_lines(lines, first, delim):
+        if not is_data(i):
+            groups.setdefault(lines[i][:1], []).append(i)
     if not groups:
         return None, "", []
     order = sorted(groups, key=lambda c: -len(groups[c]))
     best = groups[order[0]]
     runs = [lines[i][:len(lines[i]) - len(lines[i].lstrip(PROMPT_CHARS))] for i in best]
     prefix = os.path.commonprefix(runs)
-    n_all = sum(1 for line in lines if line.startswith(prefix))
+    n_all = int(starting_with(lines, prefix).sum())
     why = (f"{n_all} line{'s' if n_all != 1 else ''} start{'' if n_all != 1 else 's'} with {prefix!r}, "
            f"{len(best)} of them among the data (e.g. line "
            f"{best[0] + 1}: {lines[best[0]].strip()[:30]!r}): comment or prompt lines, not garbled data")
@@ -352,13 +478,14 @@ def _prompt_prefix(lines: list[str], first: int, delim: str, is_data: Callable[[
     return prefix, why, warnings
 
 
-def read_numbers(lines: list[str], lay: Layout) -> tuple[np.ndarray, int, dict[int, int]]:
+def read_numbers(lines: Sequence[str], lay: Layout) -> tuple[np.ndarray, int, dict[int, int]]:
     """(rows, width) float array of the data lines (NaN where not a number), their count, and the
     first value of each column of integers too long for float64 (epoch ns), which are returned
     less that first value."""
     rows: list[list[float]] = []
     base: dict[int, int] | None = None
-    for line in lines[lay.data_start:]:
+    for i in range(lay.data_start, len(lines)):  # line by line: never the whole file as text
+        line = lines[i]
         if not line.strip() or (lay.comment and line.startswith(lay.comment)):
             continue
         if lay.decimal_comma:

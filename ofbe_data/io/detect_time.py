@@ -12,6 +12,7 @@ it, never a guess.
 
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass
 from datetime import UTC, datetime
@@ -19,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ofbe_data.io.detect_layout import Layout, split_fields
 from ofbe_data.io.detect_units import DetectionError, fmt_num
 
 RATE_RANGE_HZ = (0.5, 20_000.0)
@@ -118,7 +120,8 @@ def _in(x: float, bounds: tuple[float, float]) -> bool:
 
 
 def decide_time_unit(path: str | Path, t: np.ndarray, name: str, name_unit: str | None, kind: str,
-                     forced: str | None = None, first: float | None = None) -> TimeDecision:
+                     forced: str | None = None, first: float | None = None,
+                     stamps: list[tuple[int, str]] | None = None) -> TimeDecision:
     """The unit of a time column, from its name, its steps and its magnitude.
 
     Parameters
@@ -139,6 +142,9 @@ def decide_time_unit(path: str | Path, t: np.ndarray, name: str, name_unit: str 
     first
         The column's first value when ``t`` holds values relative to it (stamps too long for
         float64, such as epoch nanoseconds, are read as integers less the first), else None.
+    stamps
+        (file line, text) of the column on sampled lines (:func:`stamp_texts`): a column that
+        never advances because its stamps were written in scientific notation says so.
 
     Raises
     ------
@@ -147,7 +153,7 @@ def decide_time_unit(path: str | Path, t: np.ndarray, name: str, name_unit: str 
     """
     s = step_stats(t)
     if not s.median > 0:
-        raise DetectionError(path, f"{name} does not advance (no positive step)",
+        raise DetectionError(path, f"{name} does not advance (no positive step){_same_stamps(stamps or [])}",
                              "--time-column NAME, or --rate HZ when the file has no time column")
     ones = float(np.mean(np.diff(t) == 1.0)) if s.integer else 0.0
     if forced is not None:
@@ -207,6 +213,147 @@ def _against_the_name(path: str | Path, s: StepStats, name: str, name_unit: str,
     why = f"{said}; in {unit} it gives {fmt_num(better)} Hz"
     return TimeDecision(unit, better, s, why, f"{why}: read in {unit} (give --time-unit {name_unit} if "
                                               "the name is right)")
+
+
+PRECISION_LINES = 1000
+"""Data lines whose time text :func:`stamp_texts` samples for the precision it keeps."""
+MAX_QUANTUM = 0.01
+"""A time column written in scientific notation (a float export) or beyond float64's digits may
+step by this fraction of the sample period at the finest before its lost precision is named."""
+COARSER = 1.01
+"""Any time column whose finest step exceeds the sample period by this factor is named (stamps
+with exactly the period's resolution, ``%.2f`` s at 100 Hz, are not)."""
+_NUMBER = re.compile(r"[+-]?(?P<int>\d*)(?:\.(?P<frac>\d*))?(?:[eE](?P<exp>[+-]?\d+))?")
+
+
+@dataclass(frozen=True)
+class LostPrecision:
+    """Time stamps written with fewer digits than the sample period needs.
+
+    Attributes
+    ----------
+    line, text
+        The file line whose stamp shows it, and the stamp as written.
+    digits
+        Significant digits the stamps keep (as written, or as float64 keeps them).
+    quantum
+        Finest step the stamps can show, in the column's unit.
+    period
+        The sample period, in the column's unit: the rows' span over their count, or the median
+        step when that is shorter (gaps).
+    stuck, steps
+        Steps that do not advance, of all steps.
+    """
+
+    line: int
+    text: str
+    digits: int
+    quantum: float
+    period: float
+    stuck: int
+    steps: int
+
+    def note(self, unit: str) -> str:
+        """A short clause for the evidence of the time unit and of the rate."""
+        return (f"lost precision: the time stamps keep only {self.digits} significant digits (line "
+                f"{self.line}: {self.text!r}): {self._steps(unit)}")
+
+    def warning(self, name: str, unit: str, rate_hz: float | None) -> str:
+        """The warning ``init`` prints, naming the line, the digits kept and what to do."""
+        if self.quantum > COARSER * self.period:
+            what = (f"{self.stuck} of {self.steps} steps do not advance, so the rate measured from the steps"
+                    + (f" ({fmt_num(rate_hz, 5)} Hz)" if rate_hz else "") + " is wrong")
+        else:
+            what = "each step is off by up to that much"
+        return (f"line {self.line}: {name} keeps only {self.digits} significant digits ({self.text!r}): "
+                f"{self._steps(unit)}: {what} (scientific notation or float64 keep too few digits); export "
+                "the time as integers (e.g. epoch nanoseconds written in full, not in scientific notation)")
+
+    def _steps(self, unit: str) -> str:
+        scale = TIME_SCALE.get(unit, 1.0)
+        ratio = self.quantum / self.period
+        share = f"{fmt_num(ratio, 3)} times" if ratio >= 1.0 else f"{fmt_num(100 * ratio, 2)} % of"
+        return (f"they step by {self.quantum:.3g} {unit} ({self.quantum * scale:.3g} s) at the finest, "
+                f"{share} the sample period of about {self.period:.4g} {unit} (the rows' span gives "
+                f"{fmt_num(1.0 / (self.period * scale), 5)} Hz)")
+
+
+def stamp_texts(lines: list[str], lay: Layout, column: int, limit: int = PRECISION_LINES
+                ) -> list[tuple[int, str]]:
+    """(file line, text) of a column on the first ``limit`` data lines (the lines
+    :func:`~ofbe_data.io.detect_layout.read_numbers` reads)."""
+    out: list[tuple[int, str]] = []
+    for i in range(lay.data_start, len(lines)):
+        line = lines[i]
+        if not line.strip() or (lay.comment and line.startswith(lay.comment)):
+            continue
+        f = split_fields(line.replace(",", ".") if lay.decimal_comma else line, lay.delimiter)
+        if len(f) == lay.width:
+            out.append((i + 1, f[column]))
+            if len(out) >= limit:
+                break
+    return out
+
+
+def text_quantum(text: str) -> tuple[float, bool] | None:
+    """The finest step a number's text can show (``'1.7000000001e+18'``: 1e8; ``'12.345'``: 0.001)
+    and whether it is in scientific notation; None for text that is not a plain number."""
+    m = _NUMBER.fullmatch(text.strip())
+    if m is None or not (m.group("int") or m.group("frac")):
+        return None
+    return 10.0 ** (int(m.group("exp") or 0) - len(m.group("frac") or "")), m.group("exp") is not None
+
+
+def _same_stamps(stamps: list[tuple[int, str]]) -> str:
+    """Why a column in scientific notation does not advance (its digits), or ``""``."""
+    sci = [(line, text.strip()) for line, text in stamps if (q := text_quantum(text)) is not None and q[1]]
+    if not sci:
+        return ""
+    line, text = sci[0]
+    digits = len(re.sub(r"[^0-9]", "", re.split(r"[eE]", text)[0]).lstrip("0")) or 1
+    return (f": every stamp reads {text!r} from line {line}, {digits} significant digits in scientific "
+            "notation (lost precision: export the time as integers, e.g. epoch nanoseconds written in full)")
+
+
+def lost_precision(stamps: list[tuple[int, str]], t: np.ndarray, exact: bool) -> LostPrecision | None:
+    """Whether time stamps were written with too few digits for their sample period, or None.
+
+    Parameters
+    ----------
+    stamps
+        (file line, text) of the column on sampled data lines (:func:`stamp_texts`).
+    t
+        The column's values (≥ 2), in file order.
+    exact
+        The values were read as integers (relative to the first, :func:`read_numbers`), not
+        through float64.
+
+    Returns
+    -------
+    LostPrecision or None
+        When the finest step the stamps can show (the text's last digit, or float64's spacing at
+        their magnitude) is coarser than the sample period (:data:`COARSER`), or more than
+        :data:`MAX_QUANTUM` of it for stamps in scientific notation or beyond float64's digits.
+    """
+    t = np.asarray(t, dtype=np.float64)
+    quanta = [(q[0], q[1], line, text) for line, text in stamps if (q := text_quantum(text)) is not None]
+    if t.size < 2 or not quanta:
+        return None
+    q_text, _, line, text = min(quanta, key=lambda x: x[0])
+    sci = any(x[1] for x in quanta)
+    magnitude = max(abs(float(v)) for v in (t[0], t[-1]))
+    q_float = 0.0 if exact else float(np.spacing(magnitude))
+    quantum = max(q_text, q_float)
+    s = step_stats(t)
+    span = (float(t.max()) - float(t.min())) / (t.size - 1)
+    period = min(x for x in (span, s.median) if x > 0) if max(span, s.median) > 0 else 0.0
+    if not period > 0:
+        return None
+    if not (quantum > COARSER * period or ((sci or q_float > q_text) and quantum > MAX_QUANTUM * period)):
+        return None
+    value = abs(float(text)) or magnitude  # a plain number's text (text_quantum matched it)
+    digits = math.floor(math.log10(value)) - math.floor(math.log10(quantum)) + 1 if value > 0 else 1
+    return LostPrecision(line, text.strip(), max(1, digits), quantum, period, s.backwards, int(t.size - 1))
 
 
 _RATE_LINE = re.compile(

@@ -4,7 +4,9 @@ detection modules share: :class:`DetectionError` and :func:`fmt_num`.
 The acceleration unit, and for raw counts the counts per g and the zero, come from the norm of
 the mean reading at rest (≈ 9.8 → m/s², ≈ 1 → g, ≈ 1000 → mg, near a power of two → counts;
 all axes near mid-scale of an unsigned converter → offset-binary counts); the angular-rate unit
-from the names, else from values beyond any rad/s an IMU turns at (else it is left unmapped).
+from the names, else from values beyond any rad/s an IMU turns at (else it is left unmapped); the
+temperature unit from the name, else from the values (a device's −40…125 °C as °C, kelvin or °F;
+a column no unit settles is left unmapped, with a warning).
 Pure functions of arrays: :mod:`ofbe_data.io.detect` reads the file and calls them (the column
 names are taken apart by :mod:`ofbe_data.io.detect_names`, the time unit and rate found by
 :mod:`ofbe_data.io.detect_time`). Every decision comes with its evidence (a short text a person
@@ -22,6 +24,13 @@ import numpy as np
 
 from ofbe_data.core.errors import RawFormatError
 from ofbe_data.io.gravity import G0
+from ofbe_data.io.recording import (
+    TEMPERATURE_RANGE_C,
+    TEMPERATURE_UNIT_WORDS,
+    to_celsius,
+    unit_hint,
+    units_in_range,
+)
 
 UNIT_TOLERANCE = 0.10
 """A norm at rest within 10 % of a unit's value of 1 g fits that unit."""
@@ -343,3 +352,83 @@ def decide_gyro_unit(omega: np.ndarray, name_unit: str | None, forced: str | Non
                          "which no handled IMU turns at: °/s")
     return None, (f"no unit in the names and the values (peak |ω| {fmt_num(peak)}) fit rad/s and °/s alike: "
                   "not mapped (give --gyro-unit rad/s or deg/s to map them)")
+
+
+# --------------------------------------------------------------------------- temperature
+
+HOT_AT_REST_C = 45.0
+"""A temperature column whose values read as °C have a median above this, and read as °F lie
+within 0…45 °C, is flagged: a device at rest is seldom that hot, and °F of a room look so."""
+
+
+@dataclass(frozen=True)
+class TemperatureDecision:
+    """The unit of a temperature column (:func:`decide_temperature_unit`).
+
+    Attributes
+    ----------
+    unit
+        ``C``, ``K`` or ``F``; None: the column is left out of the manifest.
+    evidence
+        Why, in a few words a person can check.
+    warning
+        What a person should look at (a unit the values contradict, °F that read as hot °C), or None.
+    """
+
+    unit: str | None
+    evidence: str
+    warning: str | None = None
+
+
+def decide_temperature_unit(values: np.ndarray, name_unit: str | None, column: str) -> TemperatureDecision:
+    """The unit of a temperature column from its name, else from its values.
+
+    A device temperature lies within :data:`~ofbe_data.io.recording.TEMPERATURE_RANGE_C`: values
+    beyond it as °C that fit it as kelvin alone, or as °F alone, are in that unit (the manifest
+    says so, and the evidence why); values that fit no unit, or both K and °F, or contradict the unit
+    the name states, leave the column unmapped, with a warning. °C values that read as hot and as
+    °F would be a room's (:data:`HOT_AT_REST_C`) are kept as °C with a warning.
+
+    Parameters
+    ----------
+    values
+        (N,) the column as written (NaN where not a number).
+    name_unit
+        The unit the column name states (``C``, ``K``, ``F``), or None.
+    column
+        The column's name, for the texts.
+
+    Returns
+    -------
+    TemperatureDecision
+    """
+    x = np.asarray(values, dtype=np.float64)
+    x = x[np.isfinite(x)]
+    if x.size == 0:
+        return TemperatureDecision(None, "no number in the column: not mapped")
+    low, high = TEMPERATURE_RANGE_C
+    span = f"values {fmt_num(float(x.min()))} to {fmt_num(float(x.max()))}"
+    fits = units_in_range(x)
+    unmapped = f"temperature column {column!r} not mapped: "
+    if name_unit in TEMPERATURE_UNIT_WORDS and name_unit not in fits:
+        why = f"the name says {name_unit}, but {unit_hint(x, name_unit)}"
+        return TemperatureDecision(None, f"{why}: not mapped", unmapped + why)
+    if name_unit in TEMPERATURE_UNIT_WORDS:
+        unit, evidence = name_unit, "the column name says so"
+    elif "C" in fits:
+        unit, evidence = "C", f"{span}: °C, within a device's {low:g} to {high:g} °C"
+    elif len(fits) == 1:
+        unit = fits[0]
+        c = to_celsius(np.array([x.min(), x.max()]), unit)
+        evidence = (f"{span} are beyond a device's {low:g} to {high:g} °C as °C; as "
+                    f"{TEMPERATURE_UNIT_WORDS[unit]} they are {c[0]:.1f} to {c[1]:.1f} °C")
+    else:
+        why = unit_hint(x, "C")
+        return TemperatureDecision(None, f"{why}: not mapped", unmapped + why)
+    middle = float(np.median(x))
+    as_f = float(to_celsius(np.array(middle), "F"))
+    warning = None
+    if unit == "C" and middle > HOT_AT_REST_C and 0.0 <= as_f <= HOT_AT_REST_C:
+        warning = (f"temperature column {column!r} reads {fmt_num(middle)} °C (median), hot for a device at "
+                   f"rest; as degrees Fahrenheit it is {as_f:.1f} °C: if so, set temperature_unit: F")
+    return TemperatureDecision(unit, evidence, warning)

@@ -23,7 +23,7 @@ from typing import Any
 import yaml
 
 from ofbe_data.core.errors import ConfigError
-from ofbe_data.io.typedconfig import closest_key, deep_merge
+from ofbe_data.io.mappings import closest_key, deep_merge
 from ofbe_data.io.yamlio import YamlProblem, read_yaml
 
 DEFAULT_PROFILE = "paper"

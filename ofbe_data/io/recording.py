@@ -4,12 +4,16 @@ from __future__ import annotations
 
 import math
 from collections import Counter
+from collections.abc import Callable, Hashable
 from dataclasses import dataclass, field
 from datetime import datetime
 from functools import cached_property
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+
+from ofbe_data.core.errors import RawFormatError
 
 #: Kinds of skipped lines, as counted in :attr:`ReadDiagnostics.skipped_by_kind`.
 SKIP_FIELD_COUNT = "field-count"
@@ -210,6 +214,15 @@ class Recording:
         """Number of samples."""
         return int(self.t.shape[0])
 
+    def once(self, key: Hashable, compute: Callable[[], Any]) -> Any:
+        """``compute()``, computed once per ``key`` for this recording (its arrays are not changed
+        once read): a check of the whole file that each of its poses asks for costs one pass, not
+        one per pose (a 20-hour file with thousands of still periods, issue 33)."""
+        memo = self.__dict__.setdefault("_once", {})  # beside the frozen fields, as cached_property does
+        if key not in memo:
+            memo[key] = compute()
+        return memo[key]
+
     @cached_property
     def median_step_s(self) -> float:
         """Median step between consecutive time stamps, ``np.median(np.diff(t))``, s (NaN with
@@ -303,8 +316,9 @@ def full_scale(acc: np.ndarray, declared: float | None = None, limit_fraction: f
     x = np.asarray(acc, dtype=np.float64).reshape(-1, 3)
     finite = np.isfinite(x)
     seen = finite.any(axis=0)  # an axis with no finite reading has no range to be at
-    high = np.where(finite, x, -np.inf).max(axis=0, initial=-np.inf)
-    low = np.where(finite, x, np.inf).min(axis=0, initial=np.inf)
+    every = bool(finite.all())  # then no masked copies of the readings (bounded memory)
+    high = (x if every else np.where(finite, x, -np.inf)).max(axis=0, initial=-np.inf)
+    low = (x if every else np.where(finite, x, np.inf)).min(axis=0, initial=np.inf)
     if declared is not None:
         lim = limit_fraction * float(declared)
         hi_bound, lo_bound, source = np.full(3, lim), np.full(3, -lim), "declared"
@@ -318,3 +332,162 @@ def full_scale(acc: np.ndarray, declared: float | None = None, limit_fraction: f
     hi_bound = np.where(stuck, high, hi_bound)
     lo_bound = np.where(stuck, low, lo_bound)
     return FullScale(lo_bound, hi_bound, source)
+
+
+# --------------------------------------------------------------------------- temperature
+
+
+TEMPERATURE_RANGE_C = (-40.0, 125.0)
+"""Range of a device temperature, °C: the widest operating range of MEMS accelerometers'
+datasheets (ADXL345 −40…+85 °C, automotive parts to +125 °C). A value outside it is no reading
+of a working sensor: another unit than the one declared, a scaled value, or no temperature."""
+TEMPERATURE_UNIT_WORDS = {"C": "degrees Celsius", "K": "kelvin", "F": "degrees Fahrenheit"}
+"""The units of ``temperature_unit`` (raw-formats.md, "Generic csv"), in words."""
+MISSING_CELLS = frozenset({"", "nan", "-nan", "+nan", "na", "n/a", "#n/a", "<na>", "null", "none", "-"})
+"""Temperature cells (trimmed, lower-cased) that hold no value: a sample without temperature, not a
+garbled line (the markers pandas and spreadsheets write for a missing number)."""
+TEMPERATURE_NOTE = "temperature_note"
+"""Header key of what a reader says about a temperature column it read with holes, or without
+any value (:func:`temperature_notes`)."""
+
+
+class ImplausibleTemperatureError(RawFormatError):
+    """A temperature column holds values no sensor reads in the unit the manifest declares."""
+
+
+def to_celsius(x: np.ndarray, unit: str) -> np.ndarray:
+    """Temperatures in ``unit`` (``C``, ``K``, ``F``) as °C, same shape."""
+    if unit == "K":
+        return x - 273.15
+    if unit == "F":
+        return (x - 32.0) * (5.0 / 9.0)
+    return x
+
+
+def units_in_range(values: np.ndarray) -> list[str]:
+    """The units (of ``C``, ``K``, ``F``, in that order) in which every finite value of ``values``
+    is a device temperature (:data:`TEMPERATURE_RANGE_C`); [] when none is, or no value is finite."""
+    x = np.asarray(values, dtype=np.float64)
+    x = x[np.isfinite(x)]
+    if x.size == 0:
+        return []
+    lo, hi = float(x.min()), float(x.max())
+    low, high = TEMPERATURE_RANGE_C
+    return [u for u in TEMPERATURE_UNIT_WORDS
+            if low <= float(to_celsius(np.array(lo), u)) and float(to_celsius(np.array(hi), u)) <= high]
+
+
+def _span(values: np.ndarray, unit: str | None = None) -> str:
+    """``285.2 to 291.1`` (as written; with ``unit``: as °C, ``12.0 to 18.0 °C``); one value alone
+    when they are all equal."""
+    ends = [float(np.min(values)), float(np.max(values))]
+    if unit is not None:
+        ends = [float(to_celsius(np.array(e), unit)) for e in ends]
+    text = [f"{e:.1f}" if unit is not None else f"{e:.6g}" for e in ends]
+    both = text[0] if text[0] == text[1] else f"{text[0]} to {text[1]}"
+    return both + (" °C" if unit is not None else "")
+
+
+def unit_hint(values: np.ndarray, declared: str) -> str:
+    """What the finite ``values`` (written in ``declared``, which some do not fit) look like.
+
+    ``the values, 285.2 to 291.1, look like kelvin (12.0 to 18.0 °C): set temperature_unit: K``;
+    with no unit in which they are all a device temperature, what else they may be: a few values
+    beyond the range among many within, or a scaled or raw value.
+    """
+    x = np.asarray(values, dtype=np.float64)
+    x = x[np.isfinite(x)]
+    fits = [u for u in units_in_range(x) if u != declared]
+    if fits:
+        words = " or ".join(f"{TEMPERATURE_UNIT_WORDS[u]} ({_span(x, u)})" for u in fits)
+        return f"the values, {_span(x)}, look like {words}: set temperature_unit: {' or '.join(fits)}"
+    low, high = TEMPERATURE_RANGE_C
+    c = to_celsius(x, declared)
+    inside = (c >= low) & (c <= high)
+    without = "leave columns.temperature out to read the file without temperature"
+    if np.any(inside):
+        n = int((~inside).sum())
+        return (f"{n} of {x.size} values {'is' if n == 1 else 'are'} outside the range, the others "
+                f"{_span(x[inside])}: {without}")
+    return (f"the values, {_span(x)}, are no device temperature in C, K or F (a scaled or raw value?): "
+            f"{without}")
+
+
+def checked_temperature(path: str | Path, values: np.ndarray, lines: np.ndarray, unit: str,
+                        column: str | int) -> np.ndarray:
+    """A temperature column as °C, refused when a value is no device temperature.
+
+    Parameters
+    ----------
+    path
+        The file (for the message).
+    values
+        (N,) the column as written, in ``unit``; NaN where a sample has no temperature.
+    lines
+        (N,) int, the file line of each value.
+    unit
+        ``C``, ``K`` or ``F``: what the manifest declares (``temperature_unit``).
+    column
+        The column's name or index, for the message.
+
+    Returns
+    -------
+    np.ndarray
+        (N,) °C, NaN kept.
+
+    Raises
+    ------
+    ImplausibleTemperatureError
+        A finite value outside :data:`TEMPERATURE_RANGE_C` once converted, naming the line of the
+        first, its value, and the unit the column's values look like.
+    """
+    x = np.asarray(values, dtype=np.float64)
+    celsius = to_celsius(x, unit)
+    low, high = TEMPERATURE_RANGE_C
+    outside = np.isfinite(celsius) & ((celsius < low) | (celsius > high))
+    if np.any(outside):
+        i = int(np.argmax(outside))
+        name = repr(column) if isinstance(column, str) else f"{column} (0-based)"
+        raise ImplausibleTemperatureError(
+            path, f"a device temperature from {low:g} to {high:g} °C in column {name} "
+                  f"(temperature_unit: {unit}, {TEMPERATURE_UNIT_WORDS[unit]})",
+            f"{float(x[i]):.6g} ({unit_hint(x, unit)})", int(lines[i]))
+    return celsius
+
+
+def mean_temperature(values: np.ndarray) -> float:
+    """Mean over the samples that have a temperature, °C; NaN when none has one."""
+    x = np.asarray(values, dtype=np.float64)
+    have = np.isfinite(x)
+    return float(np.mean(x[have])) if np.any(have) else float("nan")
+
+
+def missing_temperature_note(column: str | int, missing: np.ndarray, lines: np.ndarray) -> str | None:
+    """What a reader says of a temperature column with samples that have no temperature, or None.
+
+    Parameters
+    ----------
+    column
+        The column's name or index.
+    missing
+        (N,) bool, the samples without a temperature.
+    lines
+        (N,) int, their file lines.
+    """
+    n = int(missing.sum())
+    if n == 0:
+        return None
+    name = repr(column) if isinstance(column, str) else f"column {column}"
+    if n == missing.shape[0]:
+        return (f"the temperature column {name} holds no value (every cell empty or NaN): read without "
+                "temperature")
+    first = int(lines[int(np.argmax(missing))])
+    return (f"{n} of {missing.shape[0]} samples have no temperature in column {name} (empty or NaN "
+            f"cells, the first at line {first}): an interval's temperature is the mean over its samples "
+            "that have one")
+
+
+def temperature_notes(rec: Recording) -> list[str]:
+    """What the reader said about ``rec``'s temperature column (:data:`TEMPERATURE_NOTE`), if anything."""
+    note = rec.header.get(TEMPERATURE_NOTE)
+    return [note] if note else []

@@ -16,7 +16,6 @@ later is known at once.
 from __future__ import annotations
 
 import dataclasses
-import difflib
 import functools
 import importlib
 import math
@@ -27,6 +26,8 @@ from pathlib import Path
 from typing import Any
 
 from ofbe_data.core.errors import ConfigError
+from ofbe_data.io.mappings import closest_key
+from ofbe_data.io.pipeline_params import load_params
 from ofbe_data.io.yamlio import YamlProblem, read_yaml
 
 KeyPaths = Mapping[str, tuple[str, ...]]
@@ -106,12 +107,6 @@ def key_paths(cls: Any, prefix: str = "", _outer: frozenset[Any] = frozenset()) 
 
 
 _cached_key_paths = functools.cache(key_paths)
-
-
-def closest_key(key: str, known: Iterable[str]) -> str | None:
-    """The known key most like ``key`` (:func:`difflib.get_close_matches`, cutoff 0.6), or None."""
-    matches = difflib.get_close_matches(key, sorted(known), n=1)
-    return matches[0] if matches else None
 
 
 @functools.cache
@@ -346,8 +341,6 @@ def read_section(path: str | Path, section: str, whole_if_missing: bool = False)
         raise ConfigError(path, "<file>", "a readable YAML file", exc.strerror or str(exc)) from None
     if isinstance(data, dict) and isinstance(data.get("profile"), str):
         # a params file with a profile (params.yaml): its sections as the pipeline sees them
-        from ofbe_data.io.pipeline_params import load_params
-
         data = load_params(path)
     if isinstance(data, dict) and section in data:
         data = data[section]
@@ -358,17 +351,3 @@ def read_section(path: str | Path, section: str, whole_if_missing: bool = False)
     if not isinstance(data, dict):
         raise ConfigError(path, section, f"a mapping of {section} parameters", type(data).__name__)
     return data
-
-
-def deep_merge(base: Mapping[str, Any], over: Mapping[str, Any]) -> dict[str, Any]:
-    """``base`` with ``over`` merged in: nested mappings key by key, other values replaced.
-
-    Used for a configuration's overrides (simulator profiles, pipeline profiles).
-    """
-    out = dict(base)
-    for key, value in over.items():
-        if isinstance(value, Mapping) and isinstance(out.get(key), Mapping):
-            out[key] = deep_merge(out[key], value)
-        else:
-            out[key] = value
-    return out

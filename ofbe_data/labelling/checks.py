@@ -405,9 +405,15 @@ _SKIP_WORDS = {
                                "with sort_by_time: true; the file itself is never changed)"),
 }
 """How a garbled-file rejection names each kind of skipped line."""
+_SORTED_TIME_WORDS = ("with a time stamp that repeats an earlier one (sort_by_time: true is set, so the rows "
+                      "are read in time order and none runs backwards: duplicated lines, or a clock coarser "
+                      "than the sample period; remove the duplicated lines, or log the time with more "
+                      "digits; the file itself is never changed)")
+"""Their words for a file already read in time order (sorting again would change nothing)."""
 
 
-def skipped_lines_problem(diagnostics: ReadDiagnostics, max_fraction: float) -> str | None:
+def skipped_lines_problem(diagnostics: ReadDiagnostics, max_fraction: float,
+                          header: dict[str, str] | None = None) -> str | None:
     """Why a file skipped too many of its data lines (``garbled``), naming each kind, or None.
 
     Parameters
@@ -416,12 +422,18 @@ def skipped_lines_problem(diagnostics: ReadDiagnostics, max_fraction: float) -> 
         The reader's account of the file.
     max_fraction
         Largest fraction of the data lines that may be skipped.
+    header
+        The recording's header: ``sort_by_time: "true"`` (a generic csv read in time order)
+        words the dropped time stamps as repeats, without advising ``sort_by_time``.
     """
     d = diagnostics
     skipped = len(d.skipped)
     if not (d.lines_read and skipped / d.lines_read > max_fraction):
         return None
-    what = "; ".join(f"{n} {_SKIP_WORDS.get(kind, kind)}"
+    words = _SKIP_WORDS
+    if (header or {}).get("sort_by_time") == "true":
+        words = {**_SKIP_WORDS, SKIP_NON_INCREASING_TIME: _SORTED_TIME_WORDS}
+    what = "; ".join(f"{n} {words.get(kind, kind)}"
                      for kind, n in sorted(d.skipped_by_kind.items(), key=lambda kv: (-kv[1], kv[0])))
     share = skipped / d.lines_read
     return f"{skipped} of {d.lines_read} data lines skipped ({share:.2%} > {max_fraction:.2%}): {what}"

@@ -21,13 +21,14 @@ from ofbe_data.labelling.multiposition import (
     MIN_TEMPERATURE_SPAN_C,
     TEMPERATURE,
     PoseFit,
-    _check_means,
-    _nan_fit,
     base_model,
+    check_means,
     fit_poses,
     has_temperature,
     min_poses,
+    nan_fit,
     parameter_names,
+    temperature_problem,
 )
 from ofbe_data.labelling.pose_errors import (
     PoseNoise,
@@ -89,20 +90,20 @@ def choose_fit(means: np.ndarray, g: float, model: str = "auto", max_condition: 
                weights: np.ndarray | None = None, noise: PoseNoise | None = None) -> ModelChoice:
     """Fit the richest model of the ladder the poses support, or the one forced.
 
-    ``auto`` starts from ``offset`` and moves to each richer model (``scale-offset``, then
-    ``full``) that (1) has enough poses (:func:`min_poses`), (2) is well conditioned
-    (``max_condition``) and (3) improves the fit beyond noise: its F-test against the model
-    chosen so far has p < ``alpha``. When every pose has a temperature and they span ≥ 5 °C, a
-    bias temperature slope is tried first on the offset model (a slope of mg per °C would
-    otherwise pass for noise and hide the map) and kept up the ladder when significant, or
-    tried last on top of the chosen model, by the same rules. Where the norms do not determine
-    ``full`` (poses on the six faces only), :func:`fit_six_faces` is tried instead and used when
-    its non-orthogonality angles differ from zero beyond its errors, placement included
-    (:func:`wald_test`, p < ``alpha``); a forced ``full`` takes it whenever it is determined.
-    Forced or chosen, an ``offset`` model is written only when an unseen scale error cannot move
-    it by more than :data:`MAX_SCALE_LEAK_MG` (:func:`scale_leak_mg`). The chosen fit's
-    covariance is that of :mod:`ofbe_data.labelling.pose_errors`, and its reason ends with the
-    error model's terms.
+    ``auto`` starts from ``offset`` and moves to each richer model (``scale-offset``, then ``full``)
+    that (1) has enough poses (:func:`min_poses`), (2) is well conditioned (``max_condition``) and
+    (3) improves the fit beyond noise: its F-test against the model chosen so far has p < ``alpha``.
+    When every pose has a temperature and they span ≥ 5 °C, a bias temperature slope is tried first
+    on the offset model (a slope of mg per °C would otherwise pass for noise and hide the map) and
+    kept up the ladder when significant, or tried last on top of the chosen model, by the same
+    rules; otherwise the reason says why no slope was tried (:func:`temperature_problem`), and a
+    forced ``+temperature`` model is refused for it. Where the norms do not determine ``full``
+    (poses on the six faces only), :func:`fit_six_faces` is tried instead and used when its
+    non-orthogonality angles differ from zero beyond its errors, placement included
+    (:func:`wald_test`, p < ``alpha``); a forced ``full`` takes it whenever it is determined. Forced
+    or chosen, an ``offset`` model is written only when an unseen scale error cannot move it by more
+    than :data:`MAX_SCALE_LEAK_MG` (:func:`scale_leak_mg`). The chosen fit's covariance is that of
+    :mod:`ofbe_data.labelling.pose_errors`, and its reason ends with the error model's terms.
 
     Parameters
     ----------
@@ -128,7 +129,7 @@ def choose_fit(means: np.ndarray, g: float, model: str = "auto", max_condition: 
     -------
     ModelChoice
     """
-    m = _check_means(means)
+    m = check_means(means)
     noise = PoseNoise.independent(m.shape[0]) if noise is None else noise
     if model != "auto":
         fit, reason = _forced(m, g, model, max_condition, temperatures, weights, noise)
@@ -158,13 +159,20 @@ def choose_fit(means: np.ndarray, g: float, model: str = "auto", max_condition: 
         notes.append(verdict)
     elif np.isfinite(span) and span < MIN_TEMPERATURE_SPAN_C:
         notes.append(f"no temperature slope: the poses span {span:.1f} °C, {MIN_TEMPERATURE_SPAN_C:g} needed")
+    elif temps is not None and not np.isfinite(span) and (why := temperature_problem(temps, m.shape[0])):
+        notes.append(f"no temperature slope: {why}")  # poses without a temperature: the rung goes, not they
     return _finish(m, g, chosen, f"{chosen.model}: " + "; ".join(notes), max_condition, temperatures, weights,
                    noise)
 
 
 def _forced(m: np.ndarray, g: float, model: str, max_condition: float, temperatures: np.ndarray | None,
             weights: np.ndarray | None, noise: PoseNoise) -> tuple[PoseFit, str]:
-    """The forced model's fit and reason (the six-face fit where the norms cannot fit ``full``)."""
+    """The forced model's fit and reason (the six-face fit where the norms cannot fit ``full``); a
+    ``+temperature`` model is refused where the poses' temperatures cannot give its slope
+    (:func:`temperature_problem`: one missing, or a span under :data:`MIN_TEMPERATURE_SPAN_C`)."""
+    problem = temperature_problem(temperatures, m.shape[0]) if has_temperature(model) else None
+    if problem is not None and m.shape[0] >= min_poses(model):
+        return nan_fit(model, m.shape[0], float("nan"), float("nan"), problem), f"{model}: {problem}"
     fit = fit_poses(m, g, model, max_condition, temperatures)
     why = "forced by label.fit_model" if fit.determined else fit.reason
     if not fit.determined and model == "full":
@@ -189,7 +197,7 @@ def _finish(m: np.ndarray, g: float, chosen: PoseFit, reason: str, max_condition
                    f"{MAX_SCALE_LEAK_MG:g} mg): the directions are unbalanced (a face without its "
                    f"opposite?); record the opposite faces, or {min_poses('scale-offset')} poses or more "
                    "for the scale-offset model")
-            undetermined = _nan_fit(chosen.model, m.shape[0], chosen.residual_rms, chosen.condition, why)
+            undetermined = nan_fit(chosen.model, m.shape[0], chosen.residual_rms, chosen.condition, why)
             return ModelChoice(undetermined, f"{reason}; {why}")
     words = ""
     if chosen.error_model is None:

@@ -20,18 +20,18 @@ import numpy as np
 from ofbe_data.io.manifest import DeviceSpec
 from ofbe_data.io.recording import Recording
 from ofbe_data.labelling.conventions import derived_se, empty_columns, map_columns, scale_columns
-from ofbe_data.labelling.labels import (
+from ofbe_data.labelling.label_rows import (
     NO_SEGMENT,
     UNDETERMINED,
     LabelParams,
     Rejection,
+    Segment,
     SessionLabels,
-    _base_row,
-    _file_problem,
-    _finish_row,
-    _quality,
-    _Segment,
-    _segment_mean,
+    base_row,
+    file_problem,
+    finish_row,
+    quality,
+    segment_mean,
 )
 from ofbe_data.labelling.ladder import ModelChoice, choose_fit
 from ofbe_data.labelling.multiposition import (
@@ -42,9 +42,10 @@ from ofbe_data.labelling.multiposition import (
     min_poses,
     parameter_names,
 )
+from ofbe_data.labelling.pose_advice import noise_of_rows, planning_noise, refusal_advice
 from ofbe_data.labelling.pose_errors import pose_noise
 from ofbe_data.labelling.pose_search import direction_groups, find_session_poses
-from ofbe_data.labelling.poses import NoPosesError
+from ofbe_data.labelling.poses import NoPosesError, Pose
 
 RecordingSet = list[tuple[str, dict[str, Recording], dict[str, str]]]
 """Per recording of a session: its id, its files read (device → Recording) and their paths."""
@@ -100,7 +101,7 @@ def _device_rows(out: SessionLabels, dev: DeviceSpec, recordings: RecordingSet, 
         rec = recs.get(dev.id)
         if rec is None:
             continue
-        bad = _file_problem(rec, params, m.g_local)
+        bad = file_problem(rec, params, m.g_local)
         if bad is not None:
             out.rejections.append(Rejection(rec_id, dev.id, *bad))
         else:
@@ -111,10 +112,13 @@ def _device_rows(out: SessionLabels, dev: DeviceSpec, recordings: RecordingSet, 
         found = find_session_poses([(rec.t, rec.acc, rec.fs_hz) for _, rec, _ in usable], m.g_local,
                                    params.poses)
     except NoPosesError as exc:
-        # still parts too few or too alike for the fit: undetermined; no still part: no segment
-        reason = UNDETERMINED if exc.counts and max(exc.counts.values()) > 0 else NO_SEGMENT
+        # still parts too few or too alike for the fit: undetermined, with the poses to add; no
+        # still part: no segment
+        found_any = bool(exc.counts) and max(exc.counts.values()) > 0
+        reason = UNDETERMINED if found_any else NO_SEGMENT
+        advice = _poses_to_add(usable, exc.poses, m.g_local, params) if found_any and exc.poses else ""
         for rec_id, _, _ in usable:
-            out.rejections.append(Rejection(rec_id, dev.id, reason, f"poses: {exc}"))
+            out.rejections.append(Rejection(rec_id, dev.id, reason, f"poses: {exc}{advice}"))
         return []
     rows = []
     for (rec_id, rec, rel), poses in zip(usable, found.poses, strict=True):
@@ -124,21 +128,36 @@ def _device_rows(out: SessionLabels, dev: DeviceSpec, recordings: RecordingSet, 
                 f"(×{found.multiplier:g} the recording's noise floor)")))
             continue
         for p in poses:
-            seg = _Segment(p.start, p.stop, static_checked=True)
-            mean = _segment_mean(rec, seg)
-            bad = _quality(rec, seg, params, m.g_local, min_samples=2, mean=mean)
+            seg = Segment(p.start, p.stop, static_checked=True)
+            mean = segment_mean(rec, seg)
+            bad = quality(rec, seg, params, m.g_local, min_samples=2, mean=mean)
             if bad is not None:
                 out.rejections.append(Rejection(rec_id, dev.id, bad[0], f"pose {p.index} "
                                                 f"({p.start_s:.3f}–{p.end_s:.3f} s): {bad[1]}"))
                 continue
-            row = _base_row(m, rec_id, dev, rec, seg, out.files, rel, params, keep_segments, mean)
+            row = base_row(m, rec_id, dev, rec, seg, out.files, rel, params, keep_segments, mean)
             row["pose"] = p.index
             rows.append(row)
-    if len(rows) > 1 or len(usable) > 1:
-        out.warnings.append(f"{dev.id}: {len(rows)} poses in {len(usable)} recording(s), threshold "
+    if len(rows) > 1 or len(usable) > 1:  # information on a good session: a note, not a warning
+        out.notes.append(f"{dev.id}: {len(rows)} poses in {len(usable)} recording(s), threshold "
                             f"×{found.multiplier:g} the noise floor (pose-fit residual "
                             f"{found.residuals[found.multiplier]:.3g} m/s²)")
     return rows
+
+
+def _poses_to_add(usable: list[tuple[str, Recording, str]], found: tuple[tuple[Pose, ...], ...], g: float,
+                  params: LabelParams) -> str:
+    """``; record N more poses …``: the poses that let the label fit a model
+    (:func:`~ofbe_data.labelling.pose_advice.refusal_advice`), from the still poses found (per
+    recording of ``usable``) with their own noise; empty when there is none."""
+    poses = [(rec_id, rec, p) for (rec_id, rec, _), mine in zip(usable, found, strict=False) for p in mine]
+    if not poses:
+        return ""
+    means = np.array([p.mean for _, _, p in poses], dtype=np.float64).reshape(-1, 3)
+    std = np.array([rec.acc[p.start:p.stop].std(axis=0) for _, rec, p in poses], dtype=np.float64)
+    noise = planning_noise(std, np.array([p.stop - p.start for _, _, p in poses]), [r for r, _, _ in poses])
+    advice = refusal_advice(means, g, noise, params.multi_position_max_condition, params.fit_model)
+    return f"; {advice}" if advice else ""
 
 
 def pose_biases(means: np.ndarray, fit: PoseFit, g: float,
@@ -154,11 +173,10 @@ def pose_biases(means: np.ndarray, fit: PoseFit, g: float,
 
 
 def _temperatures(rows: list[dict[str, Any]]) -> np.ndarray | None:
-    """(K,) °C of the rows, or None when any row has no temperature."""
-    temps = [r.get("temperature_c") for r in rows]
-    if any(t is None or not np.isfinite(t) for t in temps):
-        return None
-    return np.array(temps, dtype=np.float64)
+    """(K,) °C of the rows, NaN where a row has no temperature; None when none has one."""
+    temps = np.array([np.nan if r.get("temperature_c") is None else r["temperature_c"] for r in rows],
+                     dtype=np.float64)
+    return temps if np.any(np.isfinite(temps)) else None
 
 
 def _fit_device(out: SessionLabels, dev: DeviceSpec, rows: list[dict[str, Any]], params: LabelParams) -> None:
@@ -183,8 +201,10 @@ def _fit_device(out: SessionLabels, dev: DeviceSpec, rows: list[dict[str, Any]],
     fit = choice.fit
     if not fit.determined:
         need = min_poses("offset" if params.fit_model == "auto" else params.fit_model)
+        advice = refusal_advice(means, g, noise_of_rows(rows), params.multi_position_max_condition,
+                                params.fit_model)
         why = (f"{len(rows)} poses in {len(groups)} distinct directions, {need} at least in directions "
-               f"that span the sphere: {choice.reason}")
+               f"that span the sphere: {choice.reason}" + (f"; {advice}" if advice else ""))
         for r in rows:
             out.rejections.append(Rejection(r["recording"], dev.id, UNDETERMINED,
                                             f"pose {r['pose']}: the session's poses do not determine the "
@@ -193,8 +213,9 @@ def _fit_device(out: SessionLabels, dev: DeviceSpec, rows: list[dict[str, Any]],
     biases, directions = pose_biases(means, fit, g, temps)
     columns = pose_fit_columns(choice)
     for r, b, u in zip(rows, biases, directions, strict=True):
-        _finish_row(r, b, u, "multi-position")
+        finish_row(r, b, u, "multi-position")
         r.update(columns)
+        r["_error_model"] = fit.error_model  # private (not written): check's planning of the next poses
         out.rows.append(r)
 
 
@@ -205,7 +226,7 @@ def label_multi_position(out: SessionLabels, recordings: RecordingSet, params: L
     Parameters
     ----------
     out
-        The session's labels; rows, rejections and warnings are appended.
+        The session's labels; rows, rejections, warnings and notes are appended.
     recordings
         Every recording of the session, read.
     params

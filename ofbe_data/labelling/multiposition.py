@@ -195,7 +195,7 @@ def parameter_names(model: str) -> list[str]:
     return names
 
 
-def _check_means(means: np.ndarray) -> np.ndarray:
+def check_means(means: np.ndarray) -> np.ndarray:
     m = np.asarray(means, dtype=np.float64)
     if m.ndim != 2 or m.shape[1] != 3:
         raise ValueError(f"means must have shape (K, 3), got {m.shape}")
@@ -204,7 +204,7 @@ def _check_means(means: np.ndarray) -> np.ndarray:
     return m
 
 
-def _check_g(g: float) -> float:
+def check_g(g: float) -> float:
     if not np.isfinite(g) or g <= 0:
         raise ValueError(f"g must be a positive finite number, got {g!r}")
     return float(g)
@@ -335,8 +335,8 @@ def sphere_centre(means: np.ndarray, g: float) -> np.ndarray:
     np.ndarray
         (3,) m/s², the centre.
     """
-    m = _check_means(means)
-    _check_g(g)
+    m = check_means(means)
+    check_g(g)
     design = np.hstack([2.0 * m, np.ones((m.shape[0], 1))])
     rhs = np.sum(m * m, axis=1)
     return np.linalg.lstsq(design, rhs, rcond=None)[0][:3]
@@ -365,7 +365,7 @@ def _start(means: np.ndarray, g: float, model: str) -> np.ndarray:
     return np.concatenate(x)
 
 
-def _temperature_offsets(temperatures: np.ndarray | None, k: int, model: str) -> tuple[np.ndarray, float]:
+def temperature_offsets(temperatures: np.ndarray | None, k: int, model: str) -> tuple[np.ndarray, float]:
     """(Δτ_k, τ₀): pose temperatures about their mean (zeros and NaN without a temperature model)."""
     if not has_temperature(model):
         return np.zeros(k), float("nan")
@@ -378,7 +378,49 @@ def _temperature_offsets(temperatures: np.ndarray | None, k: int, model: str) ->
     return tau - ref, ref
 
 
-def _nan_fit(model: str, k: int, residual_rms: float, condition: float, reason: str) -> PoseFit:
+def temperature_problem(temperatures: np.ndarray | None, k: int, min_span_c: float = MIN_TEMPERATURE_SPAN_C
+                        ) -> str | None:
+    """Why ``k`` poses' temperatures cannot determine a bias temperature slope, or None when they can.
+
+    A slope needs a temperature for every pose (a pose whose samples have none leaves the
+    temperature models out, never the pose) and temperatures that differ by ``min_span_c`` at
+    least across the poses (and by more than nothing: a constant temperature has no slope).
+
+    Parameters
+    ----------
+    temperatures
+        (K,) °C per pose, NaN where a pose has none; None when no pose has one.
+    k
+        Number of poses.
+    min_span_c
+        Smallest span of the poses' temperatures, °C.
+
+    Returns
+    -------
+    str or None
+        The reason, one clause (``temperature spans 0.0 °C across the poses (31.2 °C); a
+        +temperature model needs 5 °C at least``).
+    """
+    model = f"a {TEMPERATURE} model"
+    tau = None if temperatures is None else np.asarray(temperatures, dtype=np.float64).reshape(-1)
+    if tau is None or not np.any(np.isfinite(tau)):
+        return (f"no pose has a temperature (no temperature column mapped, or every cell of it empty or "
+                f"NaN); {model} needs one for every pose")
+    missing = int((~np.isfinite(tau)).sum())
+    if missing:
+        return (f"{missing} of {k} poses {'has' if missing == 1 else 'have'} no temperature (every "
+                f"temperature cell of {'its' if missing == 1 else 'their'} samples empty or NaN); {model} "
+                "needs one for every pose")
+    span = float(np.ptp(tau))
+    if span > 0.0 and span >= min_span_c:
+        return None
+    lo, hi = float(tau.min()), float(tau.max())
+    where = f"{lo:.1f} °C" if f"{lo:.1f}" == f"{hi:.1f}" else f"{lo:.1f} to {hi:.1f} °C"
+    need = f"{min_span_c:g} °C at least" if min_span_c > 0 else "poses at different temperatures"
+    return f"temperature spans {span:.1f} °C across the poses ({where}); {model} needs {need}"
+
+
+def nan_fit(model: str, k: int, residual_rms: float, condition: float, reason: str) -> PoseFit:
     p = n_unknowns(model)
     nan3 = np.full(3, np.nan)
     return PoseFit(model, nan3, np.full((3, 3), np.nan), nan3.copy(), float("nan"), np.full(p, np.nan),
@@ -421,16 +463,18 @@ def fit_poses(means: np.ndarray, g: float, model: str = "offset", max_condition:
         asked for without finite temperatures.
     """
     p = n_unknowns(model)
-    m = _check_means(means)
-    g = _check_g(g)
+    m = check_means(means)
+    g = check_g(g)
     if not max_condition > 0:
         raise ValueError(f"max_condition must be positive, got {max_condition!r}")
     k = m.shape[0]
     needed = p + REDUNDANT_POSES
     if k < needed:
-        return _nan_fit(model, k, float("nan"), float("nan"),
+        return nan_fit(model, k, float("nan"), float("nan"),
                         f"{needed} poses needed for the {model} model, found {k}")
-    dtemp, ref = _temperature_offsets(temperatures, k, model)
+    dtemp, ref = temperature_offsets(temperatures, k, model)
+    if has_temperature(model) and not np.ptp(dtemp) > 0:  # a slope of a constant temperature
+        return nan_fit(model, k, float("nan"), float("nan"), str(temperature_problem(temperatures, k, 0.0)))
     solution = least_squares(_residuals, _start(m, g, model), jac=residual_jacobian, method="lm",
                              args=(m, dtemp, g, model), xtol=1e-12, ftol=1e-12, gtol=1e-12)
     x = solution.x
@@ -443,7 +487,7 @@ def fit_poses(means: np.ndarray, g: float, model: str = "offset", max_condition:
     if not condition <= max_condition:
         what = ("poses do not span three dimensions" if base_model(model) == "offset" or span >= jcond
                 else f"poses do not determine the {model} model's parameters")
-        return _nan_fit(model, k, residual_rms, condition,
+        return nan_fit(model, k, residual_rms, condition,
                         f"{what} (condition {condition:.1e} > {max_condition:.0e})")
     dof = k - p
     sigma2 = float(np.sum(r * r)) / dof
@@ -482,8 +526,8 @@ def apparent_biases(means: np.ndarray, fit: PoseFit, g: float) -> np.ndarray:
         If ``means`` is not a finite (K, 3) array matching ``fit.directions`` or ``g`` is
         not positive and finite.
     """
-    m = _check_means(means)
-    g = _check_g(g)
+    m = check_means(means)
+    g = check_g(g)
     if m.shape != fit.directions.shape:
         raise ValueError(f"means have shape {m.shape}, the fit has {fit.directions.shape[0]} poses")
     return m - g * fit.directions

@@ -16,9 +16,11 @@ fills the missing directions of parameter space first); once determined it minim
 largest expected standard error (minimax), each error expressed in m/s² (offsets as they
 are, scales and angles times g: the specific-force error each causes at 1 g).
 
-What the poses determine, and the standard errors, are never predicted here: ``check`` prints
-the label's own (:func:`report_lines`, :class:`LabelledFit`), so that ``check`` and
-``ofbe-label`` say the same thing about the same poses. The norms' expectation only plans.
+The norms' expectation here only *chooses* the poses (σ, the noise of one residual, only
+scales it). What the poses determine and the standard errors stated, now or expected once the
+chosen poses are added, are the label's own, with its error model
+(:mod:`ofbe_data.labelling.pose_advice`), so that ``check`` and ``ofbe-label`` say the same
+thing about the same poses.
 
 All functions are pure and deterministic: ties are broken by the fixed candidate order of
 :func:`cube_directions`.
@@ -32,7 +34,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ofbe_data.labelling.ladder import choose_fit
 from ofbe_data.labelling.multiposition import (
     BASE_MODELS,
     fit_poses,
@@ -40,7 +41,6 @@ from ofbe_data.labelling.multiposition import (
     n_unknowns,
     parameter_names,
     residual_jacobian,
-    sphere_centre,
 )
 
 MG = 9.80665e-3
@@ -56,9 +56,6 @@ column scaling would otherwise blow rounding errors up to a unit column of rando
 
 NULL_COMPONENT = 1e-6
 """Norm of a parameter's component in the near-null space above which it is undetermined."""
-
-DEFAULT_SIGMA = 1e-3
-"""m/s², the residual noise assumed when a fit reports none (missing, NaN or 0)."""
 
 LOGDET_RIDGE = 1e-9
 """ε of the D-optimal criterion log det(JᵀJ + εI) used while JᵀJ is singular."""
@@ -147,8 +144,10 @@ def linearisation_point(means: np.ndarray, g: float, max_condition: float = 1000
     Tries ``full``, ``scale-offset`` and ``offset`` (:func:`fit_poses` with
     ``max_condition``) and takes the first determined. A poorer fit fills the unknowns it
     does not estimate with the ideal values: imu_tk scales s = 1 (``offset``) and angles 0.
-    When not even the offset is determined: b = :func:`sphere_centre` (0 without poses),
-    A = I.
+    When not even the offset is determined: the ideal sensor, b = 0 and A = I (the centre of
+    a sphere through poses that do not determine its offset
+    (:func:`~ofbe_data.labelling.multiposition.sphere_centre`) is any point
+    of a line or plane: with three poses the minimum-norm one made the advice repeat them).
 
     A loose ``max_condition`` is not advised: a full fit of poses near the six faces can
     converge to offsets of metres per second squared and angles of radians (condition ~1e5),
@@ -169,14 +168,14 @@ def linearisation_point(means: np.ndarray, g: float, max_condition: float = 1000
     -------
     tuple of (np.ndarray, str)
         The (P,) parameters of ``model`` in :func:`parameter_names` order, and what gave
-        them: the fitted model's name, or ``"sphere centre"``.
+        them: the fitted model's name, or ``"ideal sensor"``.
     """
     _check_model(model)
     m = _means(means)
-    b = sphere_centre(m, g) if m.shape[0] else np.zeros(3)
+    b = np.zeros(3)
     s = np.ones(3)
     angles = np.zeros(3)
-    source = "sphere centre"
+    source = "ideal sensor"
     for candidate in LADDER:
         fit = fit_poses(m, g, candidate, max_condition)
         if fit.determined:
@@ -337,22 +336,24 @@ def _first_best(scores: list[float], maximise: bool) -> int:
 
 def _greedy(jac: np.ndarray, rows: np.ndarray, g: float, sigma: float, n: int, model: str,
             d_optimal: bool) -> list[tuple[int, float]]:
-    """Greedy choice of ``n`` candidate rows: (index, largest SE after it) per step.
+    """Greedy choice of ``n`` distinct candidate rows: (index, largest SE after it) per step.
 
-    ``d_optimal`` False: minimax once some candidate makes the model determined, log det
+    Each step adds the chosen row to the design, and a candidate chosen once is not offered
+    again. ``d_optimal`` False: minimax once some candidate makes the model determined, log det
     while none does; True: log det throughout.
     """
     ridge = LOGDET_RIDGE * np.eye(jac.shape[1])
+    free = list(range(rows.shape[0]))
     out: list[tuple[int, float]] = []
     for _ in range(n):
-        trials = [np.vstack([jac, row]) for row in rows]
+        trials = [np.vstack([jac, rows[k]]) for k in free]
         worst = [largest_se(t, g, sigma, model) for t in trials]
         if not d_optimal and any(math.isfinite(w) for w in worst):
             pick = _first_best(worst, maximise=False)
         else:
             pick = _first_best([float(np.linalg.slogdet(t.T @ t + ridge)[1]) for t in trials], maximise=True)
         jac = trials[pick]
-        out.append((pick, worst[pick]))
+        out.append((free.pop(pick), worst[pick]))
     return out
 
 
@@ -364,7 +365,9 @@ def next_poses(means: np.ndarray, g: float, x: np.ndarray, sigma: float, n: int 
     (:func:`predicted_means`) to the poses' J. If some candidates make the model
     determined, the one with the smallest :func:`largest_se` wins (minimax); otherwise the
     one with the largest log det(JᵀJ + εI), ε = :data:`LOGDET_RIDGE` (D-optimal). Ties go to
-    the first candidate in order; a direction may be chosen again.
+    the first candidate in order. Each candidate is chosen at most once, so the ``n`` poses are
+    ``n`` distinct directions, at least 35° apart (the smallest angle between two cube
+    directions): a pose advised twice would only average its noise, which a longer pose does.
 
     Greedy minimax is myopic when the poses determine the model only barely (six faces
     held slightly tilted: angle errors of tens of degrees): one pose cannot fix a weak
@@ -384,7 +387,7 @@ def next_poses(means: np.ndarray, g: float, x: np.ndarray, sigma: float, n: int 
     sigma
         m/s², the noise of one residual.
     n
-        How many poses to choose.
+        How many poses to choose, at most the 26 candidates.
     model
         ``full``, ``scale-offset`` or ``offset``.
 
@@ -396,13 +399,13 @@ def next_poses(means: np.ndarray, g: float, x: np.ndarray, sigma: float, n: int 
         the poses before it are added (``inf`` while undetermined).
     """
     _check_model(model)
-    if n < 0:
-        raise ValueError(f"n must be ≥ 0, got {n}")
+    candidates = cube_directions()
+    if not 0 <= n <= candidates.shape[0]:
+        raise ValueError(f"n must be between 0 and {candidates.shape[0]} (distinct cube directions), got {n}")
     if n == 0:
         return []
     x = np.asarray(x, dtype=np.float64)
     jac = pose_jacobian(means, g, x, model)
-    candidates = cube_directions()
     rows = pose_jacobian(predicted_means(candidates, g, x, model), g, x, model)
     chosen = _greedy(jac, rows, g, sigma, n, model, d_optimal=False)
     d_opt = _greedy(jac, rows, g, sigma, n, model, d_optimal=True)
@@ -427,120 +430,3 @@ def readable_se(se: np.ndarray, model: str = "full") -> list[str]:
         names = "/".join(n.removeprefix("imutk_mis_") for n in parameter_names("full")[6:9])
         out.append(f"mis {names} {fmt(np.degrees(se[6:9]))}°")
     return out
-
-
-def noise_level(residual_rms: float | None) -> float:
-    """σ from a fit's residual rms: :data:`DEFAULT_SIGMA` when missing, NaN or ≤ 0."""
-    if residual_rms is None:
-        return DEFAULT_SIGMA
-    value = float(residual_rms)
-    return value if math.isfinite(value) and value > 0 else DEFAULT_SIGMA
-
-
-@dataclass(frozen=True)
-class LabelledFit:
-    """What the label writes for a device's poses (the ladder's choice, :func:`labelled_fit`).
-
-    Attributes
-    ----------
-    model
-        ``fit_model`` (``offset``, ``scale-offset``, ``full``, …; empty when not labelled).
-    reason
-        ``fit_model_reason``: what the poses determine and why.
-    se
-        (9,) standard errors of ``offset_*`` (m/s²), ``imutk_s_*`` and ``imutk_mis_*`` (rad);
-        NaN where the model does not fit the parameter.
-    """
-
-    model: str
-    reason: str
-    se: np.ndarray
-
-
-def labelled_fit(row: dict[str, object]) -> LabelledFit:
-    """:class:`LabelledFit` from one label row of a multi-position session."""
-    se = []
-    for name in parameter_names("full"):
-        value = row.get(name + "_se")
-        se.append(float(value) if isinstance(value, int | float) else float("nan"))
-    return LabelledFit(str(row.get("fit_model") or ""), str(row.get("fit_model_reason") or ""), np.array(se))
-
-
-def ladder_fit(means: np.ndarray, g: float, max_condition: float = 1000.0) -> LabelledFit:
-    """:class:`LabelledFit` of the ladder's ``auto`` choice for poses without a label (no sample
-    statistics: every pose alone)."""
-    choice = choose_fit(_means(means), g, "auto", max_condition)
-    se = np.full(9, np.nan)
-    if choice.fit.determined:
-        order = parameter_names("full")
-        for name, value in zip(parameter_names(choice.fit.model), np.sqrt(np.diag(choice.fit.covariance)),
-                               strict=False):
-            if name in order:
-                se[order.index(name)] = value
-    return LabelledFit(choice.fit.model if choice.fit.determined else "", choice.reason, se)
-
-
-def fitted_se_text(se: np.ndarray) -> str:
-    """Standard errors as :func:`readable_se` writes them, a group the model does not fit as
-    ``… not fitted``."""
-    se = np.asarray(se, dtype=np.float64)
-    groups = readable_se(np.where(np.isnan(se), 0.0, se))
-    names = ("offsets", "scales", "angles")
-    return "; ".join(text if not np.all(np.isnan(se[3 * i:3 * i + 3])) else f"{names[i]} not fitted"
-                     for i, text in enumerate(groups))
-
-
-def report_lines(device: str, means: np.ndarray, g: float, residual_rms: float | None,
-                 max_condition: float = 1000.0, n: int = 3, fitted: LabelledFit | None = None) -> list[str]:
-    """What ``ofbe-session check`` prints for one device of a multi-position session.
-
-    The determination and the standard errors are the label's (``fitted``, or the ladder's
-    ``auto`` choice when None), so that ``check`` and ``ofbe-label`` say the same thing about
-    the same poses; the norms' expectation of the ``full`` model only plans the next poses.
-
-    Parameters
-    ----------
-    device
-        The device id (each line starts with it).
-    means
-        (K, 3) m/s², the device's pose means.
-    g
-        m/s², local gravity magnitude.
-    residual_rms
-        m/s², the device's pose-fit residual rms (σ of the planning; see :func:`noise_level`).
-    max_condition
-        Largest condition of a fit used as the linearisation point.
-    n
-        How many next poses to suggest.
-    fitted
-        The label's fit (:func:`labelled_fit`), or None.
-
-    Returns
-    -------
-    list of str
-        The label's model with its standard errors, the ladder's reason, and the next-poses line.
-    """
-    m = _means(means)
-    fit = ladder_fit(m, g, max_condition) if fitted is None else fitted
-    sigma = noise_level(residual_rms)
-    if fit.model:
-        out = [f"{device}: the label fits {fit.model} from {m.shape[0]} poses, standard errors "
-               f"{fitted_se_text(fit.se)}"]
-    else:
-        out = [f"{device}: the label fits no model from {m.shape[0]} poses"]
-    out.append(f"{device}: why: {fit.reason}")
-    x, _ = linearisation_point(m, g, max_condition)
-    full = fit.model.removesuffix("+temperature") == "full"
-    now = float(np.max(se_in_mps2(fit.se, g))) if full and np.all(np.isfinite(fit.se)) else float("inf")
-    picks = next_poses(m, g, x, sigma, n)
-    listed = "; ".join(f"{k + 1}. {describe_direction(u)}" for k, (u, _) in enumerate(picks))
-    after = min(now, picks[-1][1]) if picks else now
-    each = " (" + ", ".join(_mg(w) for _, w in picks) + " after each, by the norms)" if len(picks) > 1 else ""
-    out.append(f"{device}: next poses to record (each sensor axis' angle above or below level; an axis "
-               f"pointing up reads +g): {listed}; largest SE of the full model (offsets, scales × g, angles "
-               f"× g) {_mg(now)} → {_mg(after)} with them{each}")
-    return out
-
-
-def _mg(value_mps2: float) -> str:
-    return f"{value_mps2 / MG:.3g} mg" if math.isfinite(value_mps2) else "inf"

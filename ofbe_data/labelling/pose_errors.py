@@ -57,12 +57,12 @@ from ofbe_data.labelling.conventions import ANGLE_NAMES
 from ofbe_data.labelling.multiposition import (
     TEMPERATURE,
     PoseFit,
-    _temperature_offsets,
     base_model,
     has_temperature,
     map_from_params,
     parameter_names,
     residual_jacobian,
+    temperature_offsets,
 )
 
 MG = G0 / 1000.0
@@ -285,7 +285,7 @@ def norm_fit_errors(fit: PoseFit, means: np.ndarray, g: float, noise: PoseNoise,
     and C = ``missing_cov`` (:func:`missing_names` order; None: :func:`prior_missing_covariance`).
     """
     m = np.asarray(means, dtype=np.float64)
-    dtemp, _ = _temperature_offsets(temperatures, m.shape[0], fit.model)
+    dtemp, _ = temperature_offsets(temperatures, m.shape[0], fit.model)
     jac = residual_jacobian(fit.params, m, dtemp, g, fit.model)
     grad = -jac[:, :3]
     structure = (grad @ grad.T) * _cluster_matrix(noise.clusters)

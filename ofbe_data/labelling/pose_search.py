@@ -42,7 +42,7 @@ from ofbe_data.labelling.poses import (
     tie_limit,
     window_samples,
 )
-from ofbe_data.labelling.poses import _scoring_model as scoring_model
+from ofbe_data.labelling.poses import pose_scoring_model as scoring_model
 
 
 @dataclass(frozen=True)
@@ -173,9 +173,10 @@ def find_session_poses(recordings: Sequence[tuple[np.ndarray, np.ndarray, float]
     chosen = choose_multiplier(residuals, dofs, params.tie_sigmas)
     fit = fits[chosen] if chosen is not None else None
     if chosen is None or fit is None:
+        most = max(counts, key=lambda k: counts[k]) if counts else None  # the first of equal counts
         raise NoPosesError(_no_poses_message(floors, sources, counts, fits, needed, params),
                            max(floors) if floors else math.nan, sources[0] if sources else "", counts,
-                           needed)
+                           needed, poses[most] if most is not None else ())
     found, fit, multipliers = _with_missed_periods(poses, chosen, fit, data, floors, windows, residuals, dofs,
                                                    g_local, params)
     return PoseDetection(found, chosen, tuple(floors), tuple(sources), residuals, counts, fit,
@@ -398,12 +399,13 @@ def direction_groups(means: np.ndarray, tolerance_deg: float = 10.0) -> list[lis
     units = m / np.linalg.norm(m, axis=1, keepdims=True)
     cos_tol = math.cos(math.radians(tolerance_deg))
     groups: list[list[int]] = []
+    firsts = np.empty_like(units)  # each group's first pose: one product per group and pose, as arrays
     for i, u in enumerate(units):
-        for group in groups:
-            if float(np.sum(u * units[group[0]])) >= cos_tol:
-                group.append(i)
-                break
+        joins = np.flatnonzero(np.sum(firsts[:len(groups)] * u, axis=1) >= cos_tol)
+        if joins.size:
+            groups[int(joins[0])].append(i)
         else:
+            firsts[len(groups)] = u
             groups.append([i])
     return groups
 

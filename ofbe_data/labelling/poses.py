@@ -59,6 +59,7 @@ FLOOR_QUANTISATION = "quantisation step"  #: ``floor_source``: the output step s
 AUTO = "auto"  #: ``PoseParams.model``: ``scale-offset`` where a candidate has poses enough
 MIN_WINDOW = 3  #: fewest samples in a moving window
 MG = G0 / 1000.0  #: 1 mg in m/s² (for messages)
+BLOCK = 1 << 16  #: windows taken at a time by the moving statistics (bounded temporaries)
 
 
 class PoseParamError(ConfigError, ValueError):
@@ -73,16 +74,18 @@ class NoPosesError(OfbeError, ValueError):
 
     Attributes ``noise_floor_var`` ((m/s²)², NaN when not measured), ``floor_source``,
     ``counts`` (multiplier → poses found) and ``needed`` (poses the fit needs) hold what the
-    message says.
+    message says; ``poses`` holds, per recording, the poses the multiplier finding the most
+    found (empty when none), for advice on which poses to add.
     """
 
     def __init__(self, message: str, noise_floor_var: float, floor_source: str,
-                 counts: dict[float, int], needed: int) -> None:
+                 counts: dict[float, int], needed: int, poses: tuple[tuple[Pose, ...], ...] = ()) -> None:
         super().__init__(message)
         self.noise_floor_var = noise_floor_var
         self.floor_source = floor_source
         self.counts = counts
         self.needed = needed
+        self.poses = poses
 
 
 @dataclass(frozen=True)
@@ -258,15 +261,22 @@ def moving_stats(acc: np.ndarray, window: int) -> tuple[np.ndarray, np.ndarray]:
         (N − window + 1,) (m/s²)², the sum over the axes of the (ddof = 1) variances.
     """
     x = np.asarray(acc, dtype=np.float64)
-    centre = x.mean(axis=0)
-    x = x - centre  # keeps the cumulative sums well conditioned
-    zero = np.zeros((1, 3))
-    c1 = np.concatenate((zero, np.cumsum(x, axis=0)))
-    c2 = np.concatenate((zero, np.cumsum(x * x, axis=0)))
-    s1 = c1[window:] - c1[:-window]
-    s2 = c2[window:] - c2[:-window]
-    var = np.maximum((s2 - s1 * s1 / window) / (window - 1), 0.0).sum(axis=1)
-    return s1 / window + centre, var
+    centre = x.mean(axis=0)  # taken out: keeps the cumulative sums well conditioned
+    m = max(x.shape[0] - window + 1, 0)
+    means, var = np.empty((m, 3)), np.empty(m)
+    carry = np.zeros((2, 1, 3))  # the cumulative sums of x and x² before the block's first sample
+    for a in range(0, m, BLOCK):  # in blocks: the same additions in the same order, bounded memory
+        b = min(m, a + BLOCK)
+        d = x[a:b + window - 1] - centre
+        sums = np.stack((d, d * d))
+        if a:  # numpy's running sum adds each element to the one before: carry it in the same way
+            sums[:, 0] += carry[:, 0]
+        c = np.concatenate((carry, np.cumsum(sums, axis=1)), axis=1)
+        carry = c[:, b - a:b - a + 1]
+        s1, s2 = c[0, window:] - c[0, :b - a], c[1, window:] - c[1, :b - a]
+        var[a:b] = np.maximum((s2 - s1 * s1 / window) / (window - 1), 0.0).sum(axis=1)
+        means[a:b] = s1 / window + centre
+    return means, var
 
 
 def noise_floor(var: np.ndarray, window: int, fs_hz: float, params: PoseParams) -> tuple[float, str]:
@@ -289,7 +299,8 @@ def noise_floor(var: np.ndarray, window: int, fs_hz: float, params: PoseParams) 
         (m/s²)², at least ``3 · min_noise_mps2²``; :data:`FLOOR_INITIAL` or :data:`FLOOR_QUIETEST`.
     """
     length = int(np.clip(round(params.init_quiet_s * fs_hz) - window + 1, 1, var.shape[0]))
-    sums = np.concatenate(([0.0], np.cumsum(var)))
+    sums = np.zeros(var.shape[0] + 1)
+    np.cumsum(var, out=sums[1:])
     quietest = int(np.argmin(sums[length:] - sums[:-length]))
     lowest = 3.0 * params.min_noise_mps2**2
     floor_quietest = max(median(var[quietest:quietest + length]), lowest)
@@ -357,9 +368,12 @@ def quiet_windows(means: np.ndarray, var: np.ndarray, window: int, threshold_var
         (M,) bool.
     """
     low = var <= threshold_var
-    d = means[window:] - means[:-window]
-    steady = (np.sum(d * d, axis=1) <= 2.0 * drift_factor * threshold_var / window) \
-        | ~low[window:] | ~low[:-window]  # entry j: window j + window against window j
+    limit = 2.0 * drift_factor * threshold_var / window
+    steady = ~low[window:] | ~low[:-window]  # entry j: window j + window against window j
+    for a in range(0, steady.shape[0], BLOCK):
+        e = min(a + BLOCK, steady.shape[0])
+        d = means[a + window:e + window] - means[a:e]
+        steady[a:e] |= np.sum(d * d, axis=1) <= limit
     pad = np.ones(min(window, var.shape[0]), dtype=bool)
     after = np.concatenate((steady, pad))[:var.shape[0]]
     before = np.concatenate((pad, steady))[:var.shape[0]]
@@ -381,12 +395,14 @@ def static_runs(quiet: np.ndarray, window: int) -> np.ndarray:
     np.ndarray
         (R, 2) int64, half-open sample ranges [start, stop), in time order.
     """
-    m = quiet.shape[0]
-    cover = np.concatenate(([0], np.cumsum(quiet.astype(np.int64))))  # cover[j + 1]: quiet in 0 … j
-    i = np.arange(m + window - 1)
-    static = (cover[np.minimum(i, m - 1) + 1] - cover[np.maximum(i - window + 1, 0)]) > 0
-    edges = np.flatnonzero(np.diff(np.concatenate(([0], static.astype(np.int8), [0]))))
-    return edges.reshape(-1, 2).astype(np.int64)
+    pad = np.zeros(1, dtype=np.int8)
+    runs = np.flatnonzero(np.diff(np.concatenate((pad, quiet.astype(np.int8), pad)))).reshape(-1, 2)
+    if not runs.size:
+        return runs.astype(np.int64)
+    # quiet windows p … q − 1 hold samples p … q + window − 2; runs that touch or overlap are one
+    first, stop = runs[:, 0], runs[:, 1] + (window - 1)
+    new = np.concatenate(([True], first[1:] > stop[:-1]))
+    return np.stack((first[new], stop[np.append(new[1:], True)]), axis=1).astype(np.int64)
 
 
 def run_lasts(runs: np.ndarray, t: np.ndarray, fs_hz: float) -> np.ndarray:
@@ -493,7 +509,7 @@ def make_poses(t: np.ndarray, acc: np.ndarray, intervals: list[tuple[int, int]])
     return tuple(out)
 
 
-def _scoring_model(n_poses: int, params: PoseParams) -> str:
+def pose_scoring_model(n_poses: int, params: PoseParams) -> str:
     """Fit model that scores a candidate with ``n_poses`` poses (``params.model``, or for
     ``auto``: ``scale-offset`` from ``scale_min_poses`` poses on, else ``offset``)."""
     if params.model != AUTO:
@@ -521,7 +537,7 @@ def score(means: np.ndarray, g_local: float, params: PoseParams) -> tuple[float,
         that lost poses); ν; the fit (None below the model's fewest poses). The residual is NaN
         and ν 0 when the candidate has too few poses or the fit is not determined.
     """
-    model = _scoring_model(means.shape[0], params)
+    model = pose_scoring_model(means.shape[0], params)
     k = means.shape[0]
     if k < min_poses(model):
         return math.nan, 0, None

@@ -23,10 +23,10 @@ import numpy as np
 from ofbe_data.labelling.conventions import imutk_from_matrix
 from ofbe_data.labelling.multiposition import (
     PoseFit,
-    _check_g,
-    _check_means,
-    _nan_fit,
+    check_g,
+    check_means,
     condition_number,
+    nan_fit,
     residual_jacobian,
     span_condition,
 )
@@ -67,7 +67,7 @@ def six_faces(means: np.ndarray, weights: np.ndarray | None = None) -> tuple[np.
     (index, reason)
         (6,) pose indices in :data:`FACE_ORDER` and ``""``, or None and a sentence.
     """
-    m = _check_means(means)
+    m = check_means(means)
     w = np.ones(m.shape[0]) if weights is None else np.asarray(weights, dtype=np.float64)
     unit = m / np.maximum(np.sqrt(np.sum(m * m, axis=1, keepdims=True)), np.finfo(float).tiny)
     axis = np.argmax(np.abs(unit), axis=1)
@@ -190,16 +190,16 @@ def fit_six_faces(means: np.ndarray, g: float, weights: np.ndarray | None = None
         when the poses are not six faces, the faces are not square
         (:data:`SQUARE_TOLERANCE_DEG`), or no pose is left for the residual.
     """
-    m = _check_means(means)
-    g = _check_g(g)
+    m = check_means(means)
+    g = check_g(g)
     k = m.shape[0]
     index, why = six_faces(m, weights)
     if index is None:
-        return replace(_nan_fit("full", k, float("nan"), float("nan"), why), how=SIX_FACES)
+        return replace(nan_fit("full", k, float("nan"), float("nan"), why), how=SIX_FACES)
     faces = m[index]
     tilt = face_tilt_deg(faces, g)
     if not tilt <= SQUARE_TOLERANCE_DEG:
-        return replace(_nan_fit("full", k, float("nan"), float("nan"),
+        return replace(nan_fit("full", k, float("nan"), float("nan"),
                                 f"opposite faces {tilt:.2f}° from opposite (at most "
                                 f"{SQUARE_TOLERANCE_DEG:g}°)"),
                        how=SIX_FACES)
@@ -210,7 +210,7 @@ def fit_six_faces(means: np.ndarray, g: float, weights: np.ndarray | None = None
     condition = max(span_condition(m), condition_number(a))
     dof = k - 6
     if dof < 1:
-        return replace(_nan_fit("full", k, residual_rms, condition,
+        return replace(nan_fit("full", k, residual_rms, condition,
                                 "7 poses needed for the six-face fit (the faces and one more), found 6"),
                        how=SIX_FACES)
     x = out["params"]

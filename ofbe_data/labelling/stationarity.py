@@ -16,6 +16,10 @@ import numpy as np
 
 from ofbe_data.io.recording import median
 
+BLOCK = 1 << 16
+"""Rows taken at a time by the running sums below when no (N, 3) buffer is given: the same
+additions in the same order, with temporaries of a block, not of the recording (issue 36)."""
+
 
 @dataclass(frozen=True)
 class StaticParams:
@@ -63,8 +67,15 @@ def column_mean(x: np.ndarray, scratch: np.ndarray | None = None) -> np.ndarray:
     """
     if not _rows_of_three(x):
         return x.mean(axis=0)
-    c = running_sums(x, scratch)
-    return (c[-1] + 0.0) / x.shape[0]
+    if scratch is not None:
+        return (running_sums(x, scratch)[-1] + 0.0) / x.shape[0]
+    last = np.zeros(3)
+    for a in range(0, x.shape[0], BLOCK):  # the running sum's last row, a block at a time
+        y = x[a:a + BLOCK].copy()
+        if a:  # out[i] = out[i − 1] + x[i] across the block's start, as in one pass
+            y[0] += last
+        last = running_sums(y)[-1]
+    return (last + 0.0) / x.shape[0]
 
 
 def running_sums(x: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
@@ -121,7 +132,11 @@ def centred_sums(acc: np.ndarray, mean: np.ndarray | None = None) -> tuple[np.nd
     if mean is None:
         mean = column_mean(x, c[1:] if x.shape[0] else None)
     c[0] = 0.0
-    running_sums(x - mean, c[1:])
+    for a in range(0, x.shape[0], BLOCK):  # x − mean a block at a time, the sums going on across blocks
+        d = x[a:a + BLOCK] - mean
+        if a:
+            d[0] += c[a]
+        running_sums(d, c[1 + a:1 + a + d.shape[0]])
     return mean, c
 
 
@@ -147,24 +162,38 @@ def moving_variance_norm(acc: np.ndarray, window: int, mean: np.ndarray | None =
     """
     x = np.asarray(acc, dtype=np.float64)
     n, k = x.shape
-    # running sums with a leading row of zeros, written in place into one buffer each (the
+    # running sums of x − mean (centred: well conditioned) and of its square, with a leading row of
+    # zeros, a block of windows at a time: each block's sums go on from the last one's (the
     # operations, and so the bits, are those of the textbook expressions in the comments)
-    if sums is None or mean is None:  # centred: keeps the cumulative sums well conditioned
-        mean, sums = centred_sums(x, mean)
-    c1, x = sums, x - mean
-    c2 = np.empty((n + 1, k))
-    c2[0] = 0.0
-    np.multiply(x, x, out=x)
-    running_sums(x, c2[1:])
-    s1 = c1[window:] - c1[:-window]
-    s2 = c2[window:] - c2[:-window]
-    # var = (s2 − s1·s1 / window) / (window − 1)
-    np.multiply(s1, s1, out=s1)
-    s1 /= window
-    s2 -= s1
-    s2 /= window - 1
-    np.maximum(s2, 0.0, out=s2)
-    return row_sum(s2)
+    if mean is None:
+        mean, sums = column_mean(x), None
+    m = max(n - window + 1, 0)
+    out = np.empty(m)
+    carry = np.zeros((2, k))  # both running sums at the block's first window
+    for a in range(0, m, BLOCK):
+        b = min(m, a + BLOCK)
+        d = x[a:b + window - 1] - mean
+        c = np.empty((2, d.shape[0] + 1, k))
+        c[:, 0] = carry
+        sq = d * d
+        if a:  # out[i] = out[i − 1] + x[i] across the block's start, as in one pass
+            sq[0] += carry[1]
+            d[0] += carry[0]
+        running_sums(sq, c[1, 1:])
+        c1 = sums[a:b + window] if sums is not None else c[0]
+        if sums is None:
+            running_sums(d, c[0, 1:])
+        carry = np.stack((c1[b - a], c[1, b - a]))
+        s1 = c1[window:] - c1[:b - a]
+        s2 = c[1, window:] - c[1, :b - a]
+        # var = (s2 − s1·s1 / window) / (window − 1)
+        np.multiply(s1, s1, out=s1)
+        s1 /= window
+        s2 -= s1
+        s2 /= window - 1
+        np.maximum(s2, 0.0, out=s2)
+        out[a:b] = row_sum(s2)
+    return out
 
 
 @dataclass(frozen=True)

@@ -1,9 +1,9 @@
 """Label products: the campaign fit over labelled sessions, and the files of products.md.
 
 ``processed/labels/<campaign>/<session>.parquet`` (one row per labelled recording and DUT,
-provenance in the Parquet metadata under ``ofbe``), ``<session>.rejected.json`` (rejections
-and warnings) and ``campaign_fit.json`` (the fit of every device, or why there is none).
-Every file is written to a temporary name and renamed.
+provenance in the Parquet metadata under ``ofbe``; not written when no row was labelled),
+``<session>.rejected.json`` (rejections, warnings and notes) and ``campaign_fit.json`` (the fit
+of every device, or why there is none). Every file is written to a temporary name and renamed.
 """
 
 from __future__ import annotations
@@ -163,22 +163,38 @@ def session_outputs(labels: SessionLabels, out_dir: str | Path) -> tuple[Path, P
     return base / f"{labels.manifest.session}.parquet", base / f"{labels.manifest.session}.rejected.json"
 
 
-def write_session(labels: SessionLabels, params: LabelParams, out_dir: str | Path) -> tuple[Path, Path]:
+def rejections_document(labels: SessionLabels) -> dict[str, Any]:
+    """The content of ``<session>.rejected.json``: every rejection with its reason, the
+    session's warnings (to check) and, where it has any, its notes (information, e.g. the poses
+    found; the key is left out otherwise, so that the files of sessions without notes keep
+    their bytes)."""
+    m = labels.manifest
+    doc = {"format": REJECTIONS_FORMAT, "toolkit_version": __version__, "campaign": m.campaign,
+           "session": m.session, "labelled": len(labels.rows),
+           "rejected": [r.to_dict() for r in labels.rejections], "warnings": labels.warnings}
+    return {**doc, "notes": labels.notes} if labels.notes else doc
+
+
+def write_session(labels: SessionLabels, params: LabelParams,
+                  out_dir: str | Path) -> tuple[Path | None, Path]:
     """Write ``<session>.parquet`` and ``<session>.rejected.json`` atomically.
+
+    A session with no labelled row writes no Parquet file (a label file of no label is no
+    product): its rejection file says why, and a label file an earlier run wrote for the
+    session is removed, so that no stale label stays readable as current.
 
     Returns
     -------
-    The two paths written.
+    The label file's path (None when not written) and the rejection file's.
     """
     parquet_path, rejected_path = session_outputs(labels, out_dir)
     parquet_path.parent.mkdir(parents=True, exist_ok=True)
-    m = labels.manifest
-    rejected = {"format": REJECTIONS_FORMAT, "toolkit_version": __version__, "campaign": m.campaign,
-                "session": m.session, "labelled": len(labels.rows),
-                "rejected": [r.to_dict() for r in labels.rejections], "warnings": labels.warnings}
-    write_bytes_atomic(parquet_path, _parquet_bytes(labels_table(labels, params)))
-    write_bytes_atomic(rejected_path, _json_bytes(rejected))
-    return parquet_path, rejected_path
+    if labels.rows:
+        write_bytes_atomic(parquet_path, _parquet_bytes(labels_table(labels, params)))
+    else:
+        parquet_path.unlink(missing_ok=True)
+    write_bytes_atomic(rejected_path, _json_bytes(rejections_document(labels)))
+    return (parquet_path if labels.rows else None), rejected_path
 
 
 def write_campaign_fit(campaign: str, fits: dict[str, DeviceFit], sessions: Sequence[SessionLabels],

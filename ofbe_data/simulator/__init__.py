@@ -30,6 +30,8 @@ from ofbe_data.simulator.campaign import (
     truth_config,
 )
 from ofbe_data.simulator.config import SimConfig, builtin_profiles, load_config, load_config_from
+from ofbe_data.simulator.wearconfig import FREE_LIVING
+from ofbe_data.simulator.wearfiles import write_free_living
 from ofbe_data.simulator.writing import write_session
 
 __all__ = ["CampaignResult", "builtin_profiles", "generate_sessions", "load_config",
@@ -153,6 +155,10 @@ def simulate_campaign(config: str | Path | SimConfig, out: str | Path, *, seed: 
     if out.exists() and not force:
         raise OutputExistsError(out)
     seed = cfg.seed if seed is None else seed
+    if cfg.kind == FREE_LIVING:  # files of wearables, not sessions of the bench (simulator/wearfiles.py)
+        files, size = write_free_living(cfg, out, seed, campaign, jobs=jobs, force=force, progress=progress,
+                                        scheduler=scheduler)
+        return CampaignResult(out, campaign, seed, cfg.sessions, files, size)
     camp_seq, sess_seqs, garble_seqs = _seeds(seed, cfg)
     draw = draw_campaign(cfg, camp_seq)
     with atomic_directory(out, replace=force) as tmp:

@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+import ofbe_data.simulator.continuous as continuous  # the module, so tests can watch its use
 from ofbe_data.core.errors import ConfigError
 from ofbe_data.core.geometry import mul3, norm3, roll_pitch
 from ofbe_data.io.formats.common import WRAP_US, format_utc
@@ -26,7 +27,6 @@ from ofbe_data.io.manifest import (
     SessionManifest,
     Site,
 )
-from ofbe_data.simulator import continuous
 from ofbe_data.simulator.config import SimConfig, config_to_dict
 from ofbe_data.simulator.continuous import Motion
 from ofbe_data.simulator.physics import (
@@ -58,7 +58,7 @@ BOOT_POOL = (
     "load:0x3fff0030,len:1184",
     "entry 0x400805e4",
 )
-_GARBLE_BYTES = (b"\xff", b"\xfe", b"?", b"#", b"\x1b", b"@", b"\x00")
+GARBLE_BYTES = (b"\xff", b"\xfe", b"?", b"#", b"\x1b", b"@", b"\x00")
 
 
 # --------------------------------------------------------------------------- draws

@@ -21,8 +21,10 @@ from typing import Any
 
 from ofbe_data.core.errors import ConfigError
 from ofbe_data.io.manifest import ID_PATTERN
-from ofbe_data.io.typedconfig import deep_merge, from_plain
+from ofbe_data.io.mappings import deep_merge
+from ofbe_data.io.typedconfig import from_plain
 from ofbe_data.io.yamlio import YamlDocument, YamlProblem, read_yaml
+from ofbe_data.simulator.wearconfig import FREE_LIVING, FreeLivingConfig, check_free_living
 
 Range = tuple[float, float]
 Vec3 = tuple[float, float, float]
@@ -169,7 +171,7 @@ class SimConfig:
     Attributes
     ----------
     kind
-        ``gravity-aligned``, ``rotated`` or ``multi-position``.
+        ``gravity-aligned``, ``rotated``, ``multi-position`` or ``free-living``.
     campaign
         Campaign id; None → the output folder's name.
     session_prefix
@@ -194,6 +196,9 @@ class SimConfig:
     continuous
         Multi-position campaigns only: recordings of many poses with handling between them
         (:class:`ContinuousConfig`); None (the default) → one pose per recording, between taps.
+    free_living
+        Free-living campaigns only: wearables worn for days
+        (:class:`~ofbe_data.simulator.wearconfig.FreeLivingConfig`; its defaults when None).
     """
 
     kind: str = "rotated"
@@ -214,6 +219,7 @@ class SimConfig:
     taps: TapConfig = TapConfig()
     reference_format: str = "mscip-csv"
     continuous: ContinuousConfig | None = None
+    free_living: FreeLivingConfig | None = None
 
 
 REFERENCE_FORMATS = ("mscip-csv", "mscip-bin")
@@ -271,7 +277,7 @@ MAX_STATIONARY_S = 86_400.0
 
 def _check(cfg: SimConfig, source: str) -> SimConfig:
     """Semantic checks that types alone do not catch."""
-    kinds = ("gravity-aligned", "rotated", "multi-position")
+    kinds = ("gravity-aligned", "rotated", "multi-position", FREE_LIVING)
     if cfg.kind not in kinds:
         raise ConfigError(source, "kind", "one of " + ", ".join(kinds), repr(cfg.kind))
     if cfg.kind == "rotated" and cfg.reference is None:
@@ -294,6 +300,13 @@ def _check(cfg: SimConfig, source: str) -> SimConfig:
     lo, hi = cfg.stationary_s
     if not 0 < lo <= hi:
         raise ConfigError(source, "stationary_s", "0 < low <= high", repr(cfg.stationary_s))
+    if cfg.kind != FREE_LIVING and cfg.free_living is not None:
+        raise ConfigError(source, "free_living", f"no free_living section for kind {cfg.kind}", "one")
+    if cfg.kind == FREE_LIVING:  # no tilts, taps or stationary recordings
+        if cfg.continuous is not None:
+            _check_continuous(cfg.continuous, cfg.kind, source)  # refused: multi-position only
+        check_free_living(cfg.free_living or FreeLivingConfig(), source)
+        return cfg
     if hi > MAX_STATIONARY_S:
         raise ConfigError(source, "stationary_s", f"at most {MAX_STATIONARY_S:g} s (one day) per recording",
                           repr(cfg.stationary_s))
@@ -463,4 +476,6 @@ def config_to_dict(cfg: SimConfig) -> dict[str, Any]:
         del out["reference_format"]
     if out["continuous"] is None:
         del out["continuous"]
+    if out["free_living"] is None:
+        del out["free_living"]
     return out

@@ -18,7 +18,7 @@ from ofbe_data.io.gravity import G0
 from ofbe_data.io.manifest import (
     write_manifest,
 )
-from ofbe_data.simulator.campaign import _GARBLE_BYTES, TRUTH_DECIMALS, SessionData
+from ofbe_data.simulator.campaign import GARBLE_BYTES, TRUTH_DECIMALS, SessionData
 
 # --------------------------------------------------------------------------- writing
 
@@ -70,7 +70,7 @@ class Garbler:
                 out[i] = line[: int(self.rng.integers(0, commas[-1] + 1))]
             elif kind == 1:
                 j = int(self.rng.integers(len(line)))
-                bad = _GARBLE_BYTES[int(self.rng.integers(len(_GARBLE_BYTES)))]
+                bad = GARBLE_BYTES[int(self.rng.integers(len(GARBLE_BYTES)))]
                 out[i] = line[:j] + bad + line[j + 1:]
             else:
                 out[i] = line[: int(self.rng.integers(commas[0] + 1, commas[-1] + 1))] + out[i + 1]

@@ -11,7 +11,7 @@ import sys
 from collections.abc import Sequence
 from typing import Any
 
-from ofbe_data.core.cli import EXIT_USAGE, add_verbose, command, fail, quiet_libraries
+from ofbe_data.core.cli import EXIT_USAGE, add_verbose, command, fail, quiet_libraries, with_examples
 from ofbe_data.core.errors import OfbeError
 from ofbe_data.io.gravity import G0 as STANDARD_GRAVITY
 from ofbe_model.estimators.base import EstimatorError
@@ -72,15 +72,19 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("recordings", nargs="+", help="session folders or raw device files")
     p.add_argument("--device", help="device id for bare files (gravity-prior uses its per-device prior)")
     p.add_argument("--g-local", type=_gravity,
-                   help=f"local gravity for bare files, m/s² (default {STANDARD_GRAVITY})")
+                   help=f"local gravity for bare files, m/s² (default: {STANDARD_GRAVITY})")
     p.add_argument("--window-length", type=int, help="samples per window for models that take any length "
-                                                     f"(default {DEFAULT_WINDOW})")
-    p.add_argument("--output", choices=("json", "table"), default="json")
+                                                     f"(default: {DEFAULT_WINDOW})")
+    p.add_argument("--output", choices=("json", "table"), default="json",
+                   help="json: one object per file on stdout, for ofbe-export; table: for reading")
     p.add_argument("--allow-outside-domain", action="store_true",
                    help="estimate even where the device, sample rate or gravity direction is outside what "
                         "the model was trained on (each such result says why in 'outside_domain')")
     add_verbose(p)
-    return p
+    return with_examples(
+        p, "ofbe-predict models/rotated raw/rotated/rot-pc001                 # each board its own model",
+        "ofbe-predict models/rotated raw/rotated/rot-pc001 --estimator gravity-prior --output table",
+        "ofbe-predict models/gravity-aligned/final.keras mine/log.csv --device adxl-1 --g-local 9.8066")
 
 
 @command(PROG)

@@ -57,6 +57,7 @@ import numpy as np
 from ofbe_data import __version__
 from ofbe_data.core.atomic import write_bytes_atomic
 from ofbe_data.core.cli import VERBOSE_ENV, import_tensorflow
+from ofbe_model.deploy.final import CARD_JSON, ModelCardError, dataset_hash
 from ofbe_model.estimators.base import EstimatorError
 from ofbe_model.ofbenet.layers import model_scalings
 from ofbe_model.ofbenet.network import OFBENet
@@ -94,6 +95,53 @@ def check_name(name: str, what: str = "name") -> str:
         raise EstimatorError(f"{what}: expected a file stem of letters, digits, '_', '-' and '.', starting "
                              f"with a letter, found {name!r}")
     return name
+
+
+class CardDatasetMismatch(ModelCardError):
+    """A model card whose training data is not the dataset given to calibrate the int8 model on."""
+
+
+def check_card_dataset(model: str | Path, dataset: str | Path) -> None:
+    """Refuse to calibrate a model on a dataset other than the one its card records.
+
+    The ``model_card.json`` beside ``model`` (:mod:`ofbe_model.deploy.final`) states the SHA-256
+    of its training dataset's ``SHA256SUMS`` (``training_data.sha256sums_sha256``); ``dataset``
+    must have that hash. A model with no card, or a card about another file, is not checked.
+
+    Raises
+    ------
+    CardDatasetMismatch
+        The card states no hash, the dataset has no ``SHA256SUMS``, or the hashes differ (the
+        message names the card, the hash it states and the dataset's).
+    """
+    model, dataset = Path(model), Path(dataset)
+    card_file = model.parent / CARD_JSON
+    try:
+        card = json.loads(card_file.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        return  # no card (or none readable): card_dataset says so where the card is needed
+    files = card.get("files") if isinstance(card, dict) else None
+    if not isinstance(files, dict) or files.get("ofbenet") != model.name:
+        return
+    data = card.get("training_data")
+    stated = data.get("sha256sums_sha256") if isinstance(data, dict) else None
+    try:
+        actual: str | None = dataset_hash(dataset)
+    except OSError:
+        actual = None
+    if not (isinstance(stated, str) and stated):
+        why = (f"{card_file}: training_data: expected the SHA-256 of the training dataset's SHA256SUMS "
+               f"(sha256sums_sha256) to check {dataset} against, found none")
+    elif actual is None:
+        why = f"{dataset}: expected a dataset with a SHA256SUMS to check against {card_file}, found none"
+    elif actual != stated:
+        why = (f"{card_file}: states training data whose SHA256SUMS has SHA-256 {stated}, but {dataset} has "
+               f"{actual}: the int8 model would be calibrated on windows it was not trained on")
+    else:
+        return
+    raise CardDatasetMismatch(f"{why}; pass the dataset the model was trained on (--dataset DIR), or "
+                              "retrain and redeploy the model on this one (its card then records it); "
+                              "nothing written")
 
 
 def _verbose() -> bool:

@@ -105,7 +105,8 @@ def test_unlabellable_input_is_a_recorded_rejection(tmp_path, capsys, name, data
     assert label_main([str(folder), "--out", str(out), "--quiet"]) == 1
     assert capsys.readouterr().err == (f"ofbe-label: error: no recording was labelled (1 {reason}; see the "
                                        f"<session>.rejected.json files in {out})\n")
-    assert sorted(p.name for p in (out / "c").iterdir()) == sorted(["campaign_fit.json", f"{name}.parquet",
-                                                                   f"{name}.rejected.json"])
+    # no label file of no label (issue 33): the rejection file says why
+    written = sorted(p.name for p in (out / "c").iterdir())
+    assert written == sorted(["campaign_fit.json", f"{name}.rejected.json"])
     (rejection,) = json.loads((out / "c" / f"{name}.rejected.json").read_text())["rejected"]
     assert rejection["reason"] == reason and rejection["detail"].startswith(detail), rejection["detail"]

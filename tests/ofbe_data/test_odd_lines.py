@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ofbe_data.io.formats.common import _Body, _read_body, _Rows
+from ofbe_data.io.formats.common import Body, _Rows, read_body
 from ofbe_data.io.formats.oddlines import long_digit_run, split_odd_lines
 
 HEADER = b"t_us,ax,ay,az\n"
@@ -43,7 +43,7 @@ def _body(case: str, n: int = 400) -> bytes:
     return HEADER + b"\n".join(lines) + b"\n"
 
 
-def _same(a: _Body, b: _Body) -> None:
+def _same(a: Body, b: Body) -> None:
     assert a.lines.tobytes() == b.lines.tobytes() and a.lines_read == b.lines_read
     assert a.skipped == b.skipped
     assert sorted(a.values) == sorted(b.values)
@@ -67,7 +67,7 @@ def test_odd_lines_apart_give_the_validating_paths_result(case: str, wanted: dic
         _same(around, full)
     # and through the reader's entry point, with a preamble before the column line
     data = b"# a\n" * (header_line - 1) + body
-    _same(_read_body(Path("x.csv"), data, data.index(HEADER), header_line, ",", wanted), full)
+    _same(read_body(Path("x.csv"), data, data.index(HEADER), header_line, ",", wanted), full)
 
 
 def test_cases_that_must_fall_back_do() -> None:

@@ -12,59 +12,8 @@ entry describes. docs/architecture.md has the checklist for adding a format. Lik
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from pathlib import Path
-
-from ofbe_data.core.errors import RawFormatError
-from ofbe_data.io.manifest import DeviceSpec
-from ofbe_data.io.recording import Recording
-
-Reader = Callable[[Path, DeviceSpec], Recording]
-"""A format's reader: the file and the device's manifest entry → a recording."""
-
-_READERS: dict[str, Reader] = {}
-
-
-def register_format(name: str, reader: Reader) -> None:
-    """Make ``reader`` the reader of manifests' ``format: <name>`` (called by each format module)."""
-    _READERS[name] = reader
-
-
-def format_names() -> tuple[str, ...]:
-    """The registered format names, sorted."""
-    return tuple(sorted(_READERS))
-
-
-def read_device_file(path: str | Path, device: DeviceSpec) -> Recording:
-    """Read one device file with the reader its manifest entry names.
-
-    Parameters
-    ----------
-    path
-        The file.
-    device
-        The device's manifest entry (format and, for ``csv``, the mapping).
-
-    Returns
-    -------
-    Recording
-
-    Raises
-    ------
-    RawFormatError
-        An unknown format, or whatever the format's reader raises.
-    """
-    reader = _READERS.get(device.format)
-    if reader is None:
-        raise RawFormatError(path, f"format {', '.join(format_names())}", repr(device.format))
-    rec = reader(Path(path), device)
-    if not rec.fs_hz > 0:  # NaN: fewer than two samples, or time that never advances
-        skipped = rec.diagnostics.skipped_by_kind
-        why = ", ".join(f"{n} lines skipped ({k})" for k, n in sorted(skipped.items())) or "nothing skipped"
-        raise RawFormatError(path, "at least two samples with increasing time stamps",
-                             f"{rec.n} usable sample(s) ({why}; are all time stamps equal?)")
-    return rec
-
-
 # the format modules register themselves on import
 from ofbe_data.io.formats import generic_csv, mscip_bin, mscip_csv, ofbe_logger  # noqa: E402, F401
+from ofbe_data.io.formats.registry import Reader, format_names, read_device_file, register_format
+
+__all__ = ["Reader", "format_names", "read_device_file", "register_format"]

@@ -23,6 +23,8 @@ import pyarrow.compute as pc
 import pyarrow.csv as pacsv
 
 from ofbe_data.core.errors import RawFormatError
+from ofbe_data.io.formats import filebytes
+from ofbe_data.io.formats.filebytes import line_starts, marked_line, next_line
 from ofbe_data.io.formats.oddlines import NUMBER_CHARS, OddSplit, long_digit_run, split_odd_lines
 from ofbe_data.io.recording import (
     GYRO_DEG_S,
@@ -54,61 +56,22 @@ GAP_FACTOR = 1.5
 # --------------------------------------------------------------------------- helpers
 
 
-def _count_lines(data: bytes) -> int:
-    """Number of lines as pyarrow splits them (\\n, \\r\\n and lone \\r all end a line)."""
-    n = data.count(b"\n") + data.count(b"\r") - data.count(b"\r\n")
-    if data and data[-1:] not in (b"\n", b"\r"):
-        n += 1
-    return n
-
-
-def _line_start(data: bytes, marker: bytes) -> int:
-    """Offset of the first line that starts with ``marker``, or −1."""
-    pos = 0
-    while True:
-        idx = data.find(marker, pos)
-        if idx <= 0:
-            return idx
-        if data[idx - 1 : idx] in (b"\n", b"\r"):
-            return idx
-        pos = idx + 1
-
-
-def _next_line(data: bytes, offset: int) -> tuple[bytes, int]:
-    """The line starting at ``offset`` (without its end) and the offset after it."""
-    end = len(data)
-    for sep in (b"\n", b"\r"):
-        i = data.find(sep, offset)
-        if i != -1:
-            end = min(end, i)
-    nxt = end
-    if data[end : end + 2] == b"\r\n":
-        nxt = end + 2
-    elif end < len(data):
-        nxt = end + 1
-    return data[offset:end], nxt
+# the byte helpers live with the file's bytes (filebytes); the format modules' name for one
+line_start = marked_line
 
 
 _MASK_NON_ASCII = bytes(range(128)) + b"?" * 128
 
 
-def _line_starts(data: bytes) -> np.ndarray:
-    """Byte offsets where each line of ``data`` starts (line ends as pyarrow splits them)."""
-    b = np.frombuffer(data, dtype=np.uint8)
-    lf = b == 0x0A
-    lone_cr = (b == 0x0D) & ~np.append(lf[1:], False)
-    return np.concatenate(([0], np.flatnonzero(lf | lone_cr) + 1))
-
-
 def _original_field(body: bytes, starts: np.ndarray, line_index: int, column: int,
                     delimiter: str) -> bytes:
     """Field ``column`` of line ``line_index`` (0-based, header = 0) of ``body``, as bytes."""
-    line = _next_line(body, int(starts[line_index]))[0]
+    line = next_line(body, int(starts[line_index]))[0]
     fields = line.split(delimiter.encode())
     return fields[column] if column < len(fields) else b""
 
 
-def _decode(raw: bytes) -> str:
+def decode_text(raw: bytes) -> str:
     return raw.decode("utf-8", errors="backslashreplace")
 
 
@@ -118,7 +81,7 @@ def _show(raw: bytes, limit: int = 40) -> str:
 
 
 @dataclass
-class _Body:
+class Body:
     """Parsed data lines of one file: validated numeric columns and their file lines."""
 
     values: dict[str, np.ndarray]
@@ -155,7 +118,7 @@ class _Scan:
 
 def _scan_data_lines(data: bytes, data_start: int, delimiter: str) -> _Scan:
     """Count the data lines after the column line (which ends at ``data_start``) as
-    :func:`_count_lines` would on the body less its column line, and test their bytes.
+    :func:`count_lines` would on the body less its column line, and test their bytes.
 
     One ``bytes.translate`` pass over the file deletes the number bytes and the delimiter;
     what is left of the data lines is their line ends plus anything else (a few percent of
@@ -190,8 +153,9 @@ def _int_too_long(v: np.ndarray) -> bool:
     return bool(np.any((v <= -_INT_LIMIT) & (v != lo)))
 
 
-def _read_typed(wanted: Mapping[str, str], parse: Callable[[dict[str, pa.DataType]], pa.Table],
-                ) -> tuple[pa.Table, dict[str, np.ndarray]] | None:
+def _read_typed(wanted: Mapping[str, str],
+                parse: Callable[[dict[str, pa.DataType]], pacsv.CSVStreamingReader], capacity: int
+                ) -> tuple[int, dict[str, np.ndarray]] | None:
     """Fast path for clean files: parse straight into int64/float64 columns.
 
     Taken only when every byte after the column line is a digit, sign, point, exponent,
@@ -199,35 +163,37 @@ def _read_typed(wanted: Mapping[str, str], parse: Callable[[dict[str, pa.DataTyp
     value parses, none is empty, integers have at most 18 digits and floats are finite:
     exactly the values the validating path would accept. Anything else (garbling, junk,
     NaN/inf text) returns None, and the validating path finds and reports it line by line.
+    The batches are copied into arrays of ``capacity`` rows as they come (bounded memory: the
+    parsed file is never held twice); returns the number of rows and the columns.
     """
     types = {n: pa.int64() if k == "int" else pa.float64() for n, k in wanted.items()}
+    out = {n: np.empty(capacity, dtype=np.int64 if k == "int" else np.float64) for n, k in wanted.items()}
+    rows = 0
     try:
-        table = parse(types)
+        for batch in parse(types):
+            if rows + batch.num_rows > capacity or any(batch.column(n).null_count for n in wanted):
+                return None
+            for name in wanted:
+                out[name][rows:rows + batch.num_rows] = batch.column(name).to_numpy()
+            rows += batch.num_rows
     except pa.ArrowInvalid:
         return None
-    values: dict[str, np.ndarray] = {}
-    for name, kind in wanted.items():
-        col = table.column(name)
-        if col.null_count:
+    pa.default_memory_pool().release_unused()  # the parser's blocks: back to the system
+    values = {name: out[name][:rows] for name in wanted}
+    for n, v in values.items():  # floats: min and max are NaN with any NaN, ±inf with any infinity
+        if _int_too_long(v) if wanted[n] == "int" else v.size and not np.isfinite((v.min(), v.max())).all():
             return None
-        v = col.to_numpy()
-        if kind == "int" and _int_too_long(v):
-            return None
-        # min and max are NaN when any value is NaN, ±inf when any is infinite
-        if kind == "float" and v.size and not (np.isfinite(v.min()) and np.isfinite(v.max())):
-            return None
-        values[name] = v
-    return table, values
+    return rows, values
 
 
-def _read_body(
+def read_body(
     path: Path,
     data: bytes,
     header_offset: int,
     header_line: int,
     delimiter: str,
     wanted: Mapping[str, str],
-) -> _Body:
+) -> Body:
     """Parse the CSV body that starts with its column-name line at ``header_offset``.
 
     Parameters
@@ -245,10 +211,10 @@ def _read_body(
 
     Returns
     -------
-    _Body
+    Body
         Columns as int64 / float64 arrays over the valid lines only.
     """
-    header_raw, data_start = _next_line(data, header_offset)
+    header_raw, data_start = next_line(data, header_offset)
     try:
         names = [n.strip() for n in header_raw.decode("utf-8").lstrip("\ufeff").split(delimiter)]
     except UnicodeDecodeError:
@@ -277,7 +243,37 @@ def _read_body(
         around = None if split is None else rows.around(split, header_line, lines_read)
         if around is not None:
             return around
-    return rows.validated(body, header_line, lines_read)
+    return _validated_in_pieces(rows, body, data_start - header_offset, header_line, lines_read)
+
+
+def _validated_in_pieces(rows: _Rows, body: bytes, head: int, header_line: int, lines_read: int) -> Body:
+    """:meth:`_Rows.validated` of pieces of whole lines (about SCAN_BLOCK / 4 bytes each), each headed by
+    the column line ``body[:head]``: lines are parsed one by one, so the rows, values and skipped
+    lines are the whole body's, in memory bounded by a piece (every field as bytes is several times
+    its text, issue 36)."""
+    starts, size = line_starts(body, head), max(1, filebytes.SCAN_BLOCK // 4)
+    starts = starts[:-1] if starts[-1] == len(body) else starts
+    if len(body) - head <= size or starts.shape[0] != lines_read:
+        return rows.validated(body, header_line, lines_read)
+    kinds = {n: np.int64 if k == "int" else np.float64 for n, k in rows.wanted.items()}
+    out = Body({n: np.empty(lines_read, dtype=t) for n, t in kinds.items()},  # filled piece by piece
+                np.empty(lines_read, dtype=np.int64), lines_read, [], rows.path, header_line)
+    i = kept = 0
+    while i < lines_read:
+        j = min(lines_read, max(i + 1, int(np.searchsorted(starts, starts[i] + size))))
+        piece = body[:head] + body[int(starts[i]):int(starts[j]) if j < lines_read else len(body)]
+        try:
+            part = rows.validated(piece, header_line + i, j - i)
+        except RawFormatError as exc:  # the line the whole body's message names
+            raise RawFormatError(rows.path, exc.expected, exc.found, header_line) from None
+        m = part.lines.shape[0]
+        out.lines[kept:kept + m] = part.lines
+        for n, v in part.values.items():
+            out.values[n][kept:kept + m] = v
+        kept, i = kept + m, j
+        out.skipped += part.skipped
+    out.values, out.lines = {n: v[:kept] for n, v in out.values.items()}, out.lines[:kept]
+    return out
 
 
 @dataclass(frozen=True)
@@ -291,9 +287,10 @@ class _Rows:
     wanted: Mapping[str, str]
 
     def parse(self, source: bytes | pa.Buffer, types: dict[str, pa.DataType], header_line: int,
-              invalid: list[SkippedLine]) -> pa.Table:
-        """``source`` (column line, data lines) through pyarrow; lines with the wrong number of
-        fields go to ``invalid`` (emptied first) with their file line."""
+              invalid: list[SkippedLine], stream: bool = False) -> pa.Table | pacsv.CSVStreamingReader:
+        """``source`` (column line, data lines) through pyarrow, as a table (``stream``: batch by
+        batch); lines with the wrong number of fields go to ``invalid`` (emptied first) with their
+        file line."""
         invalid.clear()
 
         def on_invalid(row: pacsv.InvalidRow) -> str:
@@ -302,7 +299,7 @@ class _Rows:
                                        f"expected {row.expected_columns} fields, found {row.actual_columns}"))
             return "skip"
 
-        return pacsv.read_csv(
+        return (pacsv.open_csv if stream else pacsv.read_csv)(
             pa.BufferReader(source),
             read_options=pacsv.ReadOptions(use_threads=False, column_names=self.names, skip_rows=1),
             parse_options=pacsv.ParseOptions(delimiter=self.delimiter, quote_char=False,
@@ -310,20 +307,21 @@ class _Rows:
             convert_options=pacsv.ConvertOptions(column_types=types, include_columns=list(self.wanted)),
         )
 
-    def typed(self, source: bytes | pa.Buffer, header_line: int, lines_read: int) -> _Body | None:
+    def typed(self, source: bytes | pa.Buffer, header_line: int, lines_read: int) -> Body | None:
         """The fast path (:func:`_read_typed`): None when it does not apply."""
         invalid: list[SkippedLine] = []
-        fast = _read_typed(self.wanted, lambda types: self.parse(source, types, header_line, invalid))
+        fast = _read_typed(self.wanted, lambda types: self.parse(source, types, header_line, invalid, True),
+                           lines_read)
         if fast is None:
             return None
-        table, values = fast
+        rows, values = fast
         row_lines = _row_lines(invalid, header_line, lines_read)
-        if row_lines.shape[0] != table.num_rows:
+        if row_lines.shape[0] != rows:
             return None
-        return _Body(values, row_lines, lines_read, sorted(invalid, key=lambda s: s.line), self.path,
+        return Body(values, row_lines, lines_read, sorted(invalid, key=lambda s: s.line), self.path,
                      header_line)
 
-    def around(self, split: OddSplit, header_line: int, lines_read: int) -> _Body | None:
+    def around(self, split: OddSplit, header_line: int, lines_read: int) -> Body | None:
         """The fast path over the clean lines and the validating path over the odd ones, lines
         mapped back; None unless every odd line is skipped (a valid one would need merging).
 
@@ -347,10 +345,10 @@ class _Rows:
                    + [SkippedLine(first + int(split.odd_lines[s.line - 1]), s.kind, s.detail)
                       for s in odd.skipped])
         skipped.sort(key=lambda s: s.line)
-        return _Body(clean.values, first + split.clean_lines[clean.lines - 1], lines_read, skipped,
+        return Body(clean.values, first + split.clean_lines[clean.lines - 1], lines_read, skipped,
                      self.path, header_line)
 
-    def validated(self, body: bytes, header_line: int, lines_read: int) -> _Body:
+    def validated(self, body: bytes, header_line: int, lines_read: int) -> Body:
         """The validating path: every field as bytes, tested by a regular expression."""
         path, names, delimiter, wanted = self.path, self.names, self.delimiter, self.wanted
         invalid: list[SkippedLine] = []
@@ -358,8 +356,8 @@ class _Rows:
             # pyarrow decodes an invalid row's text as UTF-8 before calling the handler, so
             # bytes >= 0x80 (never valid in a number) are masked for parsing; messages
             # quote the original bytes
-            table = self.parse(body.translate(_MASK_NON_ASCII), {n: pa.binary() for n in names}, header_line,
-                               invalid)
+            table = self.parse(body if body.isascii() else body.translate(_MASK_NON_ASCII),
+                               {n: pa.binary() for n in names}, header_line, invalid)
         except pa.ArrowInvalid as exc:
             raise RawFormatError(path, "CSV data lines", f"unreadable data ({exc})", header_line) from None
         row_lines = _row_lines(invalid, header_line, lines_read)
@@ -378,7 +376,7 @@ class _Rows:
                 raw = col[int(i)].as_py()
                 if b"?" in raw:  # masked bytes: quote the original field
                     if starts is None:
-                        starts = _line_starts(body)
+                        starts = line_starts(body)
                     raw = _original_field(body, starts, int(row_lines[i]) - header_line,
                                           names.index(name), delimiter)
                 first_bad[int(i)] = f"field {name!r} is not a number: {_show(raw)}"
@@ -396,17 +394,17 @@ class _Rows:
             col = pc.utf8_ltrim(col, "+")  # the patterns allow a plus sign, pyarrow's casts do not
             values[name] = pc.cast(col, pa.int64() if kind == "int" else pa.float64()).to_numpy()
         skipped.sort(key=lambda s: s.line)
-        out = _Body(values, row_lines[ok], lines_read, skipped, path, header_line)
+        out = Body(values, row_lines[ok], lines_read, skipped, path, header_line)
         for name, kind in wanted.items():
             if kind == "float":  # an exponent beyond float64's range parses as ±inf
                 overflow = ~np.isfinite(out.values[name])
-                _drop(out, overflow, SKIP_NON_NUMERIC,
+                drop(out, overflow, SKIP_NON_NUMERIC,
                       [f"field {name!r} is out of float64 range: {out.values[name][i]}"
                        for i in np.flatnonzero(overflow)])
         return out
 
 
-def _drop(body: _Body, bad: np.ndarray, kind: str, details: Sequence[str] | str) -> None:
+def drop(body: Body, bad: np.ndarray, kind: str, details: Sequence[str] | str) -> None:
     """Remove rows flagged in ``bad`` from ``body``, recording them as skipped."""
     idx = np.flatnonzero(bad)
     if idx.size == 0:
@@ -427,7 +425,7 @@ steps on both sides whose neighbours are consistent with each other is a corrupt
 timestamp, not a gap."""
 
 
-def _clean_times(body: _Body, t: np.ndarray, max_step: float, modulus: int | None = None
+def clean_times(body: Body, t: np.ndarray, max_step: float, modulus: int | None = None
                  ) -> tuple[np.ndarray, int]:
     """Drop corrupted or backward time stamps; undo counter wraps.
 
@@ -484,7 +482,7 @@ def _clean_times(body: _Body, t: np.ndarray, max_step: float, modulus: int | Non
         spike[0] = backward(d[:1])[0] and not abnormal(d[1:2])[0]
         spike[-1] = backward(d[-1:])[0] and not abnormal(d[-2:-1])[0]
         details = [f"time stamp {t[i]} inconsistent with its neighbours" for i in np.flatnonzero(spike)]
-        _drop(body, spike, SKIP_NON_INCREASING_TIME, details)
+        drop(body, spike, SKIP_NON_INCREASING_TIME, details)
         t = t[~spike]
     if t.size >= 2:
         # a sample must come after every sample kept before it: compare with the running
@@ -497,7 +495,7 @@ def _clean_times(body: _Body, t: np.ndarray, max_step: float, modulus: int | Non
         bad = np.zeros(t.shape, dtype=bool)
         bad[1:] = u[1:] <= before[:-1]
         details = [f"time stamp {t[i]} not after an earlier sample" for i in np.flatnonzero(bad)]
-        _drop(body, bad, SKIP_NON_INCREASING_TIME, details)
+        drop(body, bad, SKIP_NON_INCREASING_TIME, details)
         t = t[~bad]
     if t.size == 0:
         raise RawFormatError(body.path, "at least one valid data line", "none", body.header_line)
@@ -511,7 +509,7 @@ def _clean_times(body: _Body, t: np.ndarray, max_step: float, modulus: int | Non
 
 def _clean_times_fast(t: np.ndarray, max_step: float, modulus: int | None
                       ) -> tuple[np.ndarray, int] | None:
-    """:func:`_clean_times` of a series whose every step (modulo ``modulus``) is normal, in
+    """:func:`clean_times` of a series whose every step (modulo ``modulus``) is normal, in
     a few passes; None when some step is not, and the caller takes the general path.
 
     Every step in (0, max_step] means no spike and nothing backward: nothing is dropped, and
@@ -578,7 +576,7 @@ def find_gaps(t: np.ndarray, lines: np.ndarray, period_s: float | None,
     )
 
 
-def _parse_utc(text: str | None) -> datetime | None:
+def parse_utc(text: str | None) -> datetime | None:
     if not text:
         return None
     try:

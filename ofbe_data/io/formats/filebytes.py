@@ -11,10 +11,13 @@ from __future__ import annotations
 import hashlib
 import mmap
 import os
-from collections.abc import Iterator
+import re
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from contextvars import ContextVar
 from pathlib import Path
+
+import numpy as np
 
 from ofbe_data.core.atomic import file_kind
 from ofbe_data.core.errors import RawFormatError
@@ -107,3 +110,152 @@ def file_digests() -> Iterator[dict[Path, str]]:
         yield digests
     finally:
         _DIGESTS.reset(token)
+
+
+# --------------------------------------------------------------------------- whole-file passes in blocks
+
+SCAN_BLOCK = 1 << 24
+"""Bytes a whole-file pass looks at at once (16 MiB): its temporaries are a few times this, not a few
+times the file (a 300 MiB file once took 4.8 GB for a per-byte running count)."""
+_NOT_BLANK = re.compile(rb"[^ \t\n\r\x0b\x0c]")
+_BLANK_BYTES = np.zeros(256, dtype=bool)
+_BLANK_BYTES[[0x20, 0x09, 0x0A, 0x0D]] = True
+
+
+def is_blank(data: bytes) -> bool:
+    """``not data.strip()`` without the copy: nothing but ASCII whitespace."""
+    return _NOT_BLANK.search(data) is None
+
+
+def count_lines(data: bytes) -> int:
+    """Number of lines as pyarrow splits them (\\n, \\r\\n and lone \\r all end a line)."""
+    n = data.count(b"\n") + data.count(b"\r") - data.count(b"\r\n")
+    if data and data[-1:] not in (b"\n", b"\r"):
+        n += 1
+    return n
+
+
+def marked_line(data: bytes, marker: bytes) -> int:
+    """Offset of the first line that starts with ``marker``, or −1."""
+    pos = 0
+    while True:
+        idx = data.find(marker, pos)
+        if idx <= 0:
+            return idx
+        if data[idx - 1 : idx] in (b"\n", b"\r"):
+            return idx
+        pos = idx + 1
+
+
+def next_line(data: bytes, offset: int) -> tuple[bytes, int]:
+    """The line starting at ``offset`` (without its end) and the offset after it."""
+    end = len(data)
+    for sep in (b"\n", b"\r"):
+        i = data.find(sep, offset)
+        if i != -1:
+            end = min(end, i)
+    nxt = end
+    if data[end : end + 2] == b"\r\n":
+        nxt = end + 2
+    elif end < len(data):
+        nxt = end + 1
+    return data[offset:end], nxt
+
+
+def line_starts(data: bytes, start: int = 0) -> np.ndarray:
+    """``start`` and the offset after every line end of ``data`` from ``start`` on (``\\n``, ``\\r\\n`` and a
+    lone ``\\r``, as pyarrow splits lines): where each line starts, and ``len(data)`` last when ``data``
+    ends with a line end; (E + 1,) int64, scanned in blocks of :data:`SCAN_BLOCK` bytes."""
+    b = np.frombuffer(data, dtype=np.uint8)
+    n, crs = b.shape[0], data.find(b"\r", start) >= 0
+    parts = [np.full(1, start, dtype=np.int64)]
+    for a in range(start, n, SCAN_BLOCK):
+        e = min(n, a + SCAN_BLOCK)
+        lf = b[a:min(n, e + 1)] == 0x0A  # one byte more: a \r before a \n ends no line
+        ends = lf[:e - a]
+        if crs:
+            after = lf[1:] if e < n else np.append(lf[1:], False)
+            ends = ends | ((b[a:e] == 0x0D) & ~after)
+        parts.append(np.flatnonzero(ends) + (a + 1))
+    return np.concatenate(parts)
+
+
+def first_solid_line(data: bytes, starts: np.ndarray, keep: np.ndarray) -> int:
+    """The first line that ``keep`` marks and that holds a byte other than a space, tab or line end.
+
+    Parameters
+    ----------
+    data
+        The bytes.
+    starts
+        (L,) int64, where each line starts (:func:`line_starts` less a final entry at ``len(data)``).
+    keep
+        (L,) bool, the lines that count.
+
+    Returns
+    -------
+    int
+        Its index, or L when there is none (blocks of bytes from the first marked line on are
+        looked at until one holds it).
+    """
+    n = starts.shape[0]
+    if not keep.any():
+        return n
+    b = np.frombuffer(data, dtype=np.uint8)
+    pos, size = int(starts[int(np.argmax(keep))]), 4096
+    while pos < b.shape[0]:  # growing blocks: the line is usually among the first bytes looked at
+        solid = np.flatnonzero(~_BLANK_BYTES[b[pos:pos + size]]) + pos
+        lines = np.searchsorted(starts, solid, side="right") - 1
+        hit = np.flatnonzero(keep[lines])
+        if hit.size:
+            return int(lines[hit[0]])
+        pos, size = pos + size, max(1, min(2 * size, SCAN_BLOCK // 16))
+    return n
+
+
+def kept_lines(data: bytes, starts: np.ndarray, keep: np.ndarray, first: int) -> Iterator[bytes | memoryview]:
+    """The bytes of the lines that ``keep`` marks, from line ``first`` on, in order: pieces of whole
+    lines of about :data:`SCAN_BLOCK` bytes, views of ``data`` where every line is kept.
+
+    Parameters
+    ----------
+    data
+        The bytes.
+    starts
+        (L,) int64, where each line starts (as :func:`first_solid_line` takes them).
+    keep
+        (L,) bool, the lines to keep.
+    first
+        The first line to look at.
+    """
+    n, view = starts.shape[0], memoryview(data)
+    i = first
+    while i < n:
+        j = min(n, max(i + 1, int(np.searchsorted(starts, starts[i] + SCAN_BLOCK))))
+        a, e = int(starts[i]), int(starts[j]) if j < n else len(data)
+        marked = keep[i:j]
+        if marked.all():
+            yield view[a:e]
+        elif marked.any():
+            lengths = np.diff(np.append(starts[i:j], e))
+            block = np.frombuffer(data, dtype=np.uint8, count=e - a, offset=a)
+            yield block[np.repeat(marked, lengths)].tobytes()
+        i = j
+
+
+def split_first_line(pieces: Iterable[bytes | memoryview]) -> tuple[bytes, list[bytes | memoryview]]:
+    """The bytes of ``pieces`` up to and with their first ``\\n`` (all of them when there is none), and
+    the pieces after it."""
+    head: list[bytes] = []
+    rest: list[bytes | memoryview] = []
+    for piece in pieces:
+        if rest:
+            rest.append(piece)
+            continue
+        at = bytes(piece).find(b"\n")
+        if at < 0:
+            head.append(bytes(piece))
+        else:
+            head.append(bytes(piece[:at + 1]))
+            rest.append(piece[at + 1:])
+    return b"".join(head), rest

@@ -13,7 +13,10 @@ Time comes from the ``t`` column in ``time_unit`` (``samples``: an index over
 ``sample_rate_hz``), or, without a ``t`` column, from the data line's position over
 ``sample_rate_hz`` (a skipped line leaves a one-sample gap). Spacing is reported, never
 resampled. Accelerations become m/s² (``counts``: (value − zero_counts) / lsb_per_g · g0
-per axis). An optional temperature column goes to ``extra[TEMPERATURE]`` in °C.
+per axis). An optional temperature column goes to ``extra[TEMPERATURE]`` in °C: a cell without a
+value (empty, ``NaN``, ``NA``…) is a sample without temperature (NaN), never a skipped line, and a
+value no sensor reads (beyond −40…125 °C once converted) stops the file, naming the unit the
+values look like (:func:`~ofbe_data.io.recording.checked_temperature`).
 
 Saturation is judged against the range: with ``range_g``, a reading at or beyond
 :data:`SATURATION_FRACTION` of it is saturated, and the recording's
@@ -31,31 +34,44 @@ from pathlib import Path
 
 import numpy as np
 import pyarrow as pa
+import pyarrow.compute as pc
+import pyarrow.csv as pacsv
 
 from ofbe_data.core.atomic import write_bytes_atomic
 from ofbe_data.core.errors import RawFormatError
 from ofbe_data.io.device_options import GYRO_KEYS
-from ofbe_data.io.formats import register_format
 from ofbe_data.io.formats.common import (
     MAX_STEP_S,
-    _Body,
-    _clean_times,
-    _line_starts,
-    _read_body,
+    Body,
+    clean_times,
     find_gaps,
+    read_body,
 )
-from ofbe_data.io.formats.filebytes import read_file_bytes
-from ofbe_data.io.formats.writing import _assemble, _csv_body, fixed_point
+from ofbe_data.io.formats.filebytes import (
+    first_solid_line,
+    is_blank,
+    kept_lines,
+    line_starts,
+    read_file_bytes,
+    split_first_line,
+)
+from ofbe_data.io.formats.registry import register_format
+from ofbe_data.io.formats.writing import assemble, csv_body, fixed_point
 from ofbe_data.io.gravity import G0
 from ofbe_data.io.manifest import WHITESPACE, CsvMapping, DeviceSpec
 from ofbe_data.io.recording import (
     GYRO,
+    MISSING_CELLS,
+    SKIP_NON_NUMERIC,
     TEMPERATURE,
+    TEMPERATURE_NOTE,
     ReadDiagnostics,
     Recording,
     SkippedLine,
+    checked_temperature,
     full_scale,
     median,
+    missing_temperature_note,
 )
 
 _TIME_SCALE = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
@@ -76,16 +92,17 @@ absolute deviations (and always beyond 1.5 median steps)."""
 
 def _split_lines(data: bytes) -> tuple[np.ndarray, np.ndarray]:
     """Start and end (exclusive, without the line end) of every line, (L,) int64 each."""
-    starts = _line_starts(data)
+    starts = line_starts(data)
     if starts[-1] == len(data):
         starts = starts[:-1]
-    nxt = np.append(starts[1:], len(data))
     b = np.frombuffer(data, dtype=np.uint8)
-    ends = nxt.copy()
-    for _ in range(2):  # strip \n, then \r (a CRLF ends in both)
-        last = np.clip(ends - 1, 0, None)
-        strip = (ends > starts) & ((b[last] == 0x0A) | (b[last] == 0x0D)) if b.size else ends < 0
-        ends = np.where(strip, ends - 1, ends)
+    ends = np.append(starts[1:], len(data))
+    for _ in range(2 if b.size else 0):  # strip \n, then \r (a CRLF ends in both); in place
+        last = ends - 1
+        np.clip(last, 0, None, out=last)
+        end = b[last]
+        del last
+        ends -= (ends > starts) & ((end == 0x0A) | (end == 0x0D))
     return starts, ends
 
 
@@ -94,17 +111,10 @@ def _starts_with(data: bytes, starts: np.ndarray, ends: np.ndarray, prefix: byte
     if not prefix or starts.size == 0:
         return np.zeros(starts.shape, dtype=bool)
     b = np.frombuffer(data, dtype=np.uint8)
-    k = len(prefix)
-    idx = np.clip(starts[:, None] + np.arange(k), 0, len(data) - 1)
-    return ((ends - starts) >= k) & np.all(b[idx] == np.frombuffer(prefix, dtype=np.uint8), axis=1)
-
-
-def _blank(data: bytes, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
-    """Lines holding nothing but spaces and tabs, (L,) bool."""
-    b = np.frombuffer(data, dtype=np.uint8)
-    solid = ~((b == 0x20) | (b == 0x09) | (b == 0x0A) | (b == 0x0D))
-    before = np.concatenate(([0], np.cumsum(solid, dtype=np.int64)))
-    return before[ends] - before[starts] == 0
+    out = (ends - starts) >= len(prefix)
+    for j, byte in enumerate(prefix):  # one byte of the prefix at a time: (L,) temporaries
+        out &= b[np.minimum(starts + j, len(data) - 1)] == byte
+    return out
 
 
 def _clean_name(raw: str) -> str:
@@ -139,6 +149,11 @@ def _to_commas(buf: bytes, delimiter: str) -> bytes:
     return buf.replace(delimiter.encode(), b",")
 
 
+def _commas(pieces: list[bytes | memoryview], delimiter: str) -> list[bytes | memoryview]:
+    """:func:`_to_commas` of each piece (views pass through unchanged with commas)."""
+    return pieces if delimiter == "," else [_to_commas(bytes(p), delimiter) for p in pieces]
+
+
 def _normalise(path: Path, data: bytes, mapping: CsvMapping) -> tuple[bytes, np.ndarray, dict[str, str], int]:
     """The file as one comma-separated buffer headed by a column line, and where its lines were.
 
@@ -150,11 +165,11 @@ def _normalise(path: Path, data: bytes, mapping: CsvMapping) -> tuple[bytes, np.
         when ``header`` is false); the mapped column key → name in the buffer; the number of
         file lines before the first data line.
     """
-    if data.startswith(_BOM):
-        data = b" " * len(_BOM) + data[len(_BOM):]  # same offsets, so the same line numbers
+    if data.startswith(_BOM):  # same offsets, so the same line numbers
+        data = b"".join((b" " * len(_BOM), memoryview(data)[len(_BOM):]))
     starts, ends = _split_lines(data)
     n = starts.shape[0]
-    if not data.strip():
+    if is_blank(data):
         raise RawFormatError(path, "a column line and data lines" if mapping.header else "data lines",
                              "an empty file" if not data else "only blank lines")
     if mapping.skip_rows >= n:
@@ -163,23 +178,24 @@ def _normalise(path: Path, data: bytes, mapping: CsvMapping) -> tuple[bytes, np.
     keep = np.arange(n) >= mapping.skip_rows
     if mapping.comment is not None:
         keep &= ~_starts_with(data, starts, ends, mapping.comment.encode())
-    blank = _blank(data, starts, ends)
-    first = int(np.argmax(keep & ~blank)) if np.any(keep & ~blank) else n
+    first = first_solid_line(data, starts, keep)  # the first kept line that is not blank
     if first == n:
         raise RawFormatError(path, "a column line and data lines" if mapping.header else "data lines",
                              "only preamble, comment or blank lines")
     keep[:first] = False
-    line_of = np.flatnonzero(keep) + 1
-    lengths = np.append(starts[1:], len(data)) - starts
-    buf = np.frombuffer(data, dtype=np.uint8)[np.repeat(keep, lengths)].tobytes()
-    cut = buf.find(b"\n")
-    cut = len(buf) if cut < 0 else cut + 1
-    head_line = buf[:cut].rstrip(b"\r\n")
+    line_of = np.flatnonzero(keep)
+    line_of += 1
+    # the kept lines as pieces (views of data where nothing is cut out), each converted on its own:
+    # a piece starts at a line start, which is all _to_commas' rules look across
+    head_raw, pieces = split_first_line(kept_lines(data, starts, keep, first))
+    del starts, ends, keep
+    head_line = head_raw.rstrip(b"\r\n")
     if mapping.header:
-        rest = _to_commas(buf[cut:], mapping.delimiter)
+        rest = _commas(pieces, mapping.delimiter)
     else:
-        buf = _to_commas(buf, mapping.delimiter)
+        buf = _commas([head_raw, *pieces], mapping.delimiter)
         head_line = _to_commas(head_line, mapping.delimiter)
+    del pieces, data  # converted pieces hold no view of the file: a caller that let it go frees it here
     try:
         head_text = head_line.decode("utf-8")
     except UnicodeDecodeError:
@@ -213,10 +229,13 @@ def _normalise(path: Path, data: bytes, mapping: CsvMapping) -> tuple[bytes, np.
         header = ",".join(f"c{i}" for i in range(fields))
         line_of = np.concatenate(([line_of[0] - 1], line_of))
         wanted = {k: f"c{int(v)}" for k, v in c.items()}
-    return (header + "\n").encode() + body, line_of, wanted, int(line_of[1] - 1) if line_of.size > 1 else n
+    pieces = [(header + "\n").encode(), *body]
+    if bytes(next(p for p in reversed(pieces) if len(p))[-1:]) not in (b"\n", b"\r"):
+        pieces.append(b"\n")  # the parser copies an unterminated body to end it: end it here
+    return b"".join(pieces), line_of, wanted, int(line_of[1] - 1) if line_of.size > 1 else n
 
 
-def _relabel(body: _Body, line_of: np.ndarray) -> np.ndarray:
+def _relabel(body: Body, line_of: np.ndarray) -> np.ndarray:
     """Replace the buffer line numbers of ``body`` by file lines; returns the buffer rows
     (0-based data-line index) of the kept samples."""
     rows = body.lines - 1
@@ -230,17 +249,70 @@ def _relabel(body: _Body, line_of: np.ndarray) -> np.ndarray:
 
 def _acc(values: dict[str, np.ndarray], mapping: CsvMapping, keys: dict[str, str]) -> np.ndarray:
     raw = np.stack([values[keys["ax"]], values[keys["ay"]], values[keys["az"]]], axis=1)
-    if mapping.acc_unit == "counts":
-        return (raw - mapping.zero_axes()) / mapping.lsb_axes() * G0
-    return raw * _ACC_SCALE[mapping.acc_unit]
+    if mapping.acc_unit == "counts":  # (raw - zero) / lsb * g0, in place
+        raw -= mapping.zero_axes()
+        raw /= mapping.lsb_axes()
+        raw *= G0
+    else:
+        raw *= _ACC_SCALE[mapping.acc_unit]
+    return raw
 
 
-def _celsius(x: np.ndarray, unit: str) -> np.ndarray:
-    if unit == "K":
-        return x - 273.15
-    if unit == "F":
-        return (x - 32.0) * (5.0 / 9.0)
-    return x
+def _parse(path: Path, buf: bytes, line_of: np.ndarray, wanted: dict[str, str]) -> Body:
+    """The normalised buffer's data lines through the shared parser (buffer line numbers kept;
+    an error names the file line)."""
+    try:
+        return read_body(path, buf, 0, 0, ",", wanted)
+    except RawFormatError as exc:
+        raise RawFormatError(path, exc.expected, exc.found,
+                             None if exc.line is None else int(line_of[min(exc.line, len(line_of) - 1)])
+                             ) from None
+
+
+_NON_ASCII = bytes.maketrans(bytes(range(128, 256)), b"?" * 128)
+
+
+def _missing_cells(buf: bytes, name: str) -> np.ndarray:
+    """Buffer data lines (1-based after the column line) whose cell ``name`` holds no value
+    (:data:`~ofbe_data.io.recording.MISSING_CELLS`), (M,) int64."""
+    invalid: list[int] = []
+
+    def skip(row: pacsv.InvalidRow) -> str:
+        invalid.append(int(row.number or 0) - 1)
+        return "skip"
+
+    table = pacsv.read_csv(
+        pa.BufferReader(buf.translate(_NON_ASCII)),  # markers are ASCII; other bytes never match
+        read_options=pacsv.ReadOptions(use_threads=False),
+        parse_options=pacsv.ParseOptions(quote_char=False, ignore_empty_lines=False,
+                                         invalid_row_handler=skip),
+        convert_options=pacsv.ConvertOptions(column_types={name: pa.string()}, include_columns=[name]),
+    )
+    cells = pc.utf8_lower(pc.utf8_trim_whitespace(table.column(name)))
+    missing = pc.is_in(cells, value_set=pa.array(sorted(MISSING_CELLS))).to_numpy(zero_copy_only=False)
+    rows = np.setdiff1d(np.arange(1, table.num_rows + len(invalid) + 1), np.array(invalid, dtype=np.int64))
+    return rows[missing]
+
+
+def _keep_missing_temperatures(path: Path, buf: bytes, line_of: np.ndarray, body: Body,
+                               wanted: dict[str, str], name: str) -> Body:
+    """``body`` with the lines back that were skipped only for a temperature cell holding no value
+    (empty, ``NaN``, ``NA``…): a sample without temperature (NaN), never a garbled line. Other text
+    in the temperature column still skips its line. Parses again only when such a line exists."""
+    if not any(s.kind == SKIP_NON_NUMERIC and s.detail.startswith(f"field {name!r} ") for s in body.skipped):
+        return body
+    rest = _parse(path, buf, line_of, {k: v for k, v in wanted.items() if k != name})
+    back = np.setdiff1d(np.intersect1d(rest.lines, _missing_cells(buf, name)), body.lines)
+    if back.size == 0:
+        return body
+    keep = np.isin(rest.lines, np.union1d(body.lines, back))
+    lines = rest.lines[keep]
+    values = {k: v[keep] for k, v in rest.values.items()}
+    values[name] = np.full(lines.shape[0], np.nan)
+    values[name][np.searchsorted(lines, body.lines)] = body.values[name]
+    back_set = set(back.tolist())
+    return Body(values, lines, body.lines_read, [s for s in body.skipped if s.line not in back_set], path,
+                 body.header_line)
 
 
 def _gap_period(t: np.ndarray) -> tuple[float, float]:
@@ -286,18 +358,17 @@ def read_generic_csv(path: str | Path, mapping: CsvMapping, device: str | None =
     ------
     RawFormatError
         Structure that does not match the mapping (missing columns, nothing but preamble, no
-        valid data line), naming the file and line.
+        valid data line), naming the file and line (a temperature beyond the range a sensor reads:
+        :class:`~ofbe_data.io.recording.ImplausibleTemperatureError`).
     """
     path = Path(path)
-    data = read_file_bytes(path)
-    buf, line_of, keys, preamble = _normalise(path, data, mapping)
+    # the file's bytes are _normalise's alone: let go once converted (bounded memory, issue 36)
+    buf, line_of, keys, preamble = _normalise(path, read_file_bytes(path), mapping)
     wanted = {name: "float" for name in keys.values()}
-    try:
-        body = _read_body(path, buf, 0, 0, ",", wanted)
-    except RawFormatError as exc:
-        raise RawFormatError(path, exc.expected, exc.found,
-                             None if exc.line is None else int(line_of[min(exc.line, len(line_of) - 1)])
-                             ) from None
+    body = _parse(path, buf, line_of, wanted)
+    if "temperature" in keys:
+        body = _keep_missing_temperatures(path, buf, line_of, body, wanted, keys["temperature"])
+    del buf
     rows = _relabel(body, line_of)
     rate = mapping.sample_rate_hz
     if "t" not in keys:
@@ -318,12 +389,16 @@ def read_generic_csv(path: str | Path, mapping: CsvMapping, device: str | None =
     typical = median(d[d > 0]) if np.any(d > 0) else 0.0
     max_step = max(MAX_STEP_S, 10.0 / rate if rate else 0.0, 10.0 * typical)
     try:
-        t, _ = _clean_times(body, t_raw, max_step)
+        t, _ = clean_times(body, t_raw, max_step)
     except RawFormatError as exc:  # no data line left: name the column line (or the first line)
         raise RawFormatError(path, exc.expected, exc.found, int(line_of[0]) if mapping.header else None
                              ) from None
     v = body.values
     acc = _acc(v, mapping, keys)
+    needed = {keys[k] for k in keys if k not in ("t", "ax", "ay", "az")}
+    body.values = v = {k: c for k, c in v.items() if k in needed}  # the rest is read: freed here
+    del t_raw, d
+    pa.default_memory_pool().release_unused()  # their pyarrow buffers, back to the system
     saturated = np.zeros(t.shape[0], dtype=bool)
     declared = None if mapping.range_g is None else mapping.range_g * G0
     if mapping.range_g is not None:
@@ -331,8 +406,15 @@ def read_generic_csv(path: str | Path, mapping: CsvMapping, device: str | None =
     # what a pile-up of extreme readings is judged against: the declared range, else the file's own
     judged_against = full_scale(acc, declared, SATURATION_FRACTION)
     extra: dict[str, np.ndarray] = {}
-    if "temperature" in keys:
-        extra[TEMPERATURE] = _celsius(v[keys["temperature"]], mapping.temperature_unit)
+    header = {"device": device} if device else {}
+    if "temperature" in keys:  # refused when no sensor reads it; NaN: a sample without temperature
+        column = mapping.columns["temperature"]
+        temp = checked_temperature(path, v[keys["temperature"]], body.lines, mapping.temperature_unit, column)
+        note = missing_temperature_note(column, np.isnan(temp), body.lines)
+        if note:
+            header[TEMPERATURE_NOTE] = note
+        if not np.all(np.isnan(temp)):
+            extra[TEMPERATURE] = temp
     if "gx" in keys:
         scale = np.pi / 180.0 if mapping.gyro_unit == "deg/s" else 1.0
         extra.update({name: v[keys[k]] * scale for name, k in zip(GYRO, GYRO_KEYS, strict=True)})
@@ -340,8 +422,9 @@ def read_generic_csv(path: str | Path, mapping: CsvMapping, device: str | None =
     gaps = find_gaps(t, body.lines, period, gap_step / period if period > 0 else None)
     diag = ReadDiagnostics(path, preamble, body.lines_read, int(t.shape[0]), tuple(body.skipped), gaps,
                            saturated_samples=int(saturated.sum()))
-    header = {"device": device} if device else {}
     header["acc_unit"] = mapping.acc_unit
+    if mapping.sort_by_time:  # read in time order: a garbled rejection says so (skipped_lines_problem)
+        header["sort_by_time"] = "true"
     header.update(spacing_stats(t))
     start = None
     if "t" in keys and mapping.time_unit != "samples" and EPOCH_RANGE_S[0] <= t[0] <= EPOCH_RANGE_S[1]:
@@ -399,7 +482,7 @@ def write_generic_csv(
     c = mapping.columns
     d = mapping.delimiter
     header = d.join(str(c[k]) for k in ("t", "ax", "ay", "az"))
-    write_bytes_atomic(path, _assemble(preamble, header, _csv_body(cols, d), None))
+    write_bytes_atomic(path, assemble(preamble, header, csv_body(cols, d), None))
 
 
 def _read(path: Path, device: DeviceSpec) -> Recording:

@@ -34,17 +34,17 @@ from numpy.lib.stride_tricks import sliding_window_view
 
 from ofbe_data.core.atomic import write_bytes_atomic
 from ofbe_data.core.errors import RawFormatError
-from ofbe_data.io.formats import register_format
 from ofbe_data.io.formats.common import (
     MAX_STEP_S,
     MSCIP_GYRO,
     MSCIP_TEMP,
-    _Body,
-    _clean_times,
-    _parse_utc,
+    Body,
+    clean_times,
     find_gaps,
+    parse_utc,
 )
 from ofbe_data.io.formats.filebytes import read_file_bytes
+from ofbe_data.io.formats.registry import register_format
 from ofbe_data.io.gravity import G0
 from ofbe_data.io.manifest import BinOptions, DeviceSpec
 from ofbe_data.io.recording import SKIP_NON_NUMERIC, ReadDiagnostics, Recording, SkippedLine
@@ -440,7 +440,7 @@ def read_mscip_bin(path: str | Path, sample_rate_hz: float | None = None, acc_un
         values.update({name: s.gyro[:, i] for i, name in enumerate(MSCIP_GYRO)})
     if s.temperature is not None:
         values[MSCIP_TEMP] = s.temperature
-    body = _Body(values, s.offset.copy(), s.packets_ok + len(s.skipped), list(s.skipped), path, 0)
+    body = Body(values, s.offset.copy(), s.packets_ok + len(s.skipped), list(s.skipped), path, 0)
     header: dict[str, str] = {}
     start_utc = None
     timed = np.isfinite(s.seconds) if s.seconds is not None else np.zeros(s.n, dtype=bool)
@@ -452,7 +452,7 @@ def read_mscip_bin(path: str | Path, sample_rate_hz: float | None = None, acc_un
         body.values = {k: v[timed] for k, v in values.items()} | {"_w": s.week[timed], "_s": s.seconds[timed]}
         body.lines = body.lines[timed]
         w, sec = body.values["_w"], body.values["_s"]
-        t, _ = _clean_times(body, (w - w[0]).astype(np.float64) * WEEK_S + (sec - sec[0]), MAX_STEP_S)
+        t, _ = clean_times(body, (w - w[0]).astype(np.float64) * WEEK_S + (sec - sec[0]), MAX_STEP_S)
         t = t - t[0]
         week0, sec0 = int(body.values["_w"][0]), float(body.values["_s"][0])
         header["GPS Week"], header["GPS Seconds"] = str(week0), repr(sec0)
@@ -533,7 +533,7 @@ def encode_mscip(
             rec[f"c{code}"], rec[f"n{code}"] = code, SUB_LENGTH[code]
             rec[f"v{code}"] = np.asarray(values, dtype=np.float64).reshape(n, -1)
     if start_utc is not None:
-        stamp = start_utc if isinstance(start_utc, datetime) else _parse_utc(start_utc)
+        stamp = start_utc if isinstance(start_utc, datetime) else parse_utc(start_utc)
         if stamp is None:
             raise ValueError(f"start_utc: expected an ISO 8601 UTC time, found {start_utc!r}")
         week0, sec0 = utc_to_gps(stamp)

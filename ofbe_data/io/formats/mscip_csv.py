@@ -8,7 +8,6 @@ import numpy as np
 
 from ofbe_data.core.atomic import write_bytes_atomic
 from ofbe_data.core.errors import RawFormatError
-from ofbe_data.io.formats import register_format
 from ofbe_data.io.formats.common import (
     MAX_STEP_S,
     MSCIP_ACCEL,
@@ -16,17 +15,16 @@ from ofbe_data.io.formats.common import (
     MSCIP_GYRO,
     MSCIP_TEMP,
     MSCIP_TIME,
-    _clean_times,
-    _count_lines,
-    _decode,
-    _line_start,
-    _next_line,
-    _parse_utc,
-    _read_body,
+    clean_times,
+    decode_text,
     find_gaps,
+    line_start,
+    parse_utc,
+    read_body,
 )
-from ofbe_data.io.formats.filebytes import read_file_bytes
-from ofbe_data.io.formats.writing import _assemble, _csv_body, fixed_point
+from ofbe_data.io.formats.filebytes import count_lines, next_line, read_file_bytes
+from ofbe_data.io.formats.registry import register_format
+from ofbe_data.io.formats.writing import assemble, csv_body, fixed_point
 from ofbe_data.io.gravity import G0
 from ofbe_data.io.recording import (
     TEMPERATURE,
@@ -55,21 +53,21 @@ def read_mscip_csv(path: str | Path, device: str | None = None) -> Recording:
     """
     path = Path(path)
     data = read_file_bytes(path)
-    col_offset = _line_start(data, MSCIP_TIME.encode())
+    col_offset = line_start(data, MSCIP_TIME.encode())
     if col_offset < 0:
         raise RawFormatError(path, f"a column line starting with {MSCIP_TIME!r}", "none in the file")
     preamble = data[:col_offset]
-    col_line = _count_lines(preamble) + 1
+    col_line = count_lines(preamble) + 1
     header: dict[str, str] = {}
     for raw in preamble.splitlines():
-        key, sep, value = _decode(raw).partition(",")
+        key, sep, value = decode_text(raw).partition(",")
         if sep:
             header[key.strip()] = value.strip()
-    header_names = _decode(_next_line(data, col_offset)[0]).split(",")
+    header_names = decode_text(next_line(data, col_offset)[0]).split(",")
     wanted = {MSCIP_TIME: "float", **{c: "float" for c in MSCIP_ACCEL}}
     wanted.update({c: "float" for c in (*MSCIP_GYRO, MSCIP_TEMP) if c in header_names})
-    body = _read_body(path, data, col_offset, col_line, ",", wanted)
-    t, _ = _clean_times(body, body.values[MSCIP_TIME], MAX_STEP_S)
+    body = read_body(path, data, col_offset, col_line, ",", wanted)
+    t, _ = clean_times(body, body.values[MSCIP_TIME], MAX_STEP_S)
     v = body.values
     acc = np.stack([v[c] for c in MSCIP_ACCEL], axis=1) * G0
     rate = None
@@ -87,7 +85,7 @@ def read_mscip_csv(path: str | Path, device: str | None = None) -> Recording:
                            gaps)
     hdr = header | ({"device": device} if device else {})
     return Recording(path, "mscip-csv", t, acc, np.zeros(t.shape[0], dtype=bool), body.lines,
-                     _parse_utc(header.get("Start (UTC)")), rate, hdr, diag, extra)
+                     parse_utc(header.get("Start (UTC)")), rate, hdr, diag, extra)
 
 
 def write_mscip_csv(
@@ -124,7 +122,7 @@ def write_mscip_csv(
     cols += [fixed_point(gyro_dps[:, i], 4) for i in range(3)]
     cols += [fixed_point(acc_g[:, i], 5) for i in range(3)]
     cols += [fixed_point(temperature_c, 1)]
-    write_bytes_atomic(path, _assemble(preamble, ",".join(MSCIP_COLUMNS), _csv_body(cols), None))
+    write_bytes_atomic(path, assemble(preamble, ",".join(MSCIP_COLUMNS), csv_body(cols), None))
 
 
 register_format("mscip-csv", lambda path, device: read_mscip_csv(path, device.id))

@@ -14,6 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ofbe_data.io.formats.filebytes import line_starts
+
 NUMBER_CHARS = b"0123456789+-.eE"
 """Bytes a number may hold (digits, signs, point, exponent)."""
 
@@ -62,28 +64,46 @@ def split_odd_lines(body: bytes, data_start: int, delimiter: str, max_odd: int =
     """
     if not body.endswith(b"\n"):
         return None
-    rest = body[data_start:].translate(None, NUMBER_CHARS + delimiter.encode())
+    delete = NUMBER_CHARS + delimiter.encode()
+    rest = body.translate(None, delete)[len(body[:data_start].translate(None, delete)):]
     if b"\r" in rest:
         return None
-    r = np.frombuffer(rest, dtype=np.uint8)
-    newline = r == 0x0A
-    line_of = np.cumsum(newline) - newline  # data line of every remaining byte
-    odd = np.unique(line_of[~newline])
-    if odd.size == 0 or odd.size > max_odd:
+    odd = _odd_lines(np.frombuffer(rest, dtype=np.uint8), max_odd)
+    if odd is None or odd.size == 0:
         return None
-    n_lines = int(np.count_nonzero(newline))
-    ends = np.flatnonzero(np.frombuffer(body, dtype=np.uint8)[data_start:] == 0x0A) + data_start + 1
-    starts = np.concatenate(([data_start], ends[:-1]))
-    head = body[:data_start]
+    bounds = line_starts(body, data_start)  # no \r among the data lines: every line ends with \n
+    starts, ends = bounds[:-1], bounds[1:]
+    head, view = body[:data_start], memoryview(body)
     clean, odd_parts, prev = [head], [head], data_start
     for k in odd.tolist():
         a, b = int(starts[k]), int(ends[k])
-        clean.append(body[prev:a])
-        odd_parts.append(body[a:b])
+        clean.append(view[prev:a])
+        odd_parts.append(view[a:b])
         prev = b
-    clean.append(body[prev:])
-    kept = np.setdiff1d(np.arange(n_lines, dtype=np.int64), odd, assume_unique=True)
-    return OddSplit(b"".join(clean), b"".join(odd_parts), kept, odd.astype(np.int64))
+    clean.append(view[prev:])
+    kept = np.ones(starts.shape[0], dtype=bool)
+    kept[odd] = False
+    return OddSplit(b"".join(clean), b"".join(odd_parts), np.flatnonzero(kept), odd)
+
+
+def _odd_lines(rest: np.ndarray, max_odd: int, block: int = 1 << 20) -> np.ndarray | None:
+    """The data lines (0-based, increasing, int64) holding a byte of ``rest`` (the data lines' bytes
+    less number bytes and delimiters: line ends and odd bytes) other than ``\\n``; None as soon as
+    there are more than ``max_odd`` (blocks of ``block`` bytes: a text column stops at the first)."""
+    found: list[np.ndarray] = []
+    count = lines_before = 0
+    for a in range(0, rest.shape[0], block):
+        newline = rest[a:a + block] == 0x0A
+        at = np.flatnonzero(~newline)
+        if at.size:
+            lines = np.unique(np.cumsum(newline)[at] + lines_before)  # newlines before each odd byte
+            lines = lines[1:] if found and lines[0] == found[-1][-1] else lines  # a line across blocks
+            found += [lines] if lines.size else []
+            count += lines.size
+            if count > max_odd:
+                return None
+        lines_before += int(np.count_nonzero(newline))
+    return np.concatenate(found) if found else np.zeros(0, dtype=np.int64)
 
 
 _DIGITS_AS_ZERO = bytes(0x30 if 0x30 <= i <= 0x39 else 0x20 for i in range(256))

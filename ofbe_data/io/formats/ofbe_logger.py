@@ -12,23 +12,21 @@ import pyarrow as pa
 
 from ofbe_data.core.atomic import write_bytes_atomic
 from ofbe_data.core.errors import RawFormatError
-from ofbe_data.io.formats import register_format
 from ofbe_data.io.formats.common import (
     MAX_STEP_S,
     OFBE_LOGGER_COLUMNS,
     WRAP_US,
-    _clean_times,
-    _count_lines,
-    _decode,
-    _drop,
-    _line_start,
-    _next_line,
-    _parse_utc,
-    _read_body,
+    clean_times,
+    decode_text,
+    drop,
     find_gaps,
+    line_start,
+    parse_utc,
+    read_body,
 )
-from ofbe_data.io.formats.filebytes import read_file_bytes
-from ofbe_data.io.formats.writing import LineHook, _assemble, _csv_body
+from ofbe_data.io.formats.filebytes import count_lines, next_line, read_file_bytes
+from ofbe_data.io.formats.registry import register_format
+from ofbe_data.io.formats.writing import LineHook, assemble, csv_body
 from ofbe_data.io.gravity import G0
 from ofbe_data.io.recording import (
     SKIP_OUT_OF_RANGE,
@@ -42,20 +40,20 @@ from ofbe_data.io.recording import (
 def _parse_logger_header(path: Path, data: bytes) -> tuple[dict[str, str], int, int, int]:
     """Locate the ``# ofbe-logger`` header; return (keys, boot lines, column-line offset,
     column-line number)."""
-    start = _line_start(data, b"# ofbe-logger")
+    start = line_start(data, b"# ofbe-logger")
     if start < 0:
         raise RawFormatError(path, "a '# ofbe-logger' header line", "none in the file")
-    boot_lines = _count_lines(data[:start])
+    boot_lines = count_lines(data[:start])
     header: dict[str, str] = {}
     offset, line_no = start, boot_lines + 1
     while True:
         if offset >= len(data):
             raise RawFormatError(path, "the column line t_us,ax,ay,az after the header",
                                  "end of file", line_no)
-        raw, nxt = _next_line(data, offset)
+        raw, nxt = next_line(data, offset)
         if not raw.startswith(b"#"):
             break
-        for token in _decode(raw[1:]).split():
+        for token in decode_text(raw[1:]).split():
             if "=" in token:
                 key, _, value = token.partition("=")
                 header[key] = value
@@ -104,7 +102,7 @@ def read_ofbe_logger(path: str | Path, device: str | None = None) -> Recording:
     range_g = _header_number(path, header, "range_g", boot_lines + 1)
     odr = _header_number(path, header, "odr_hz", boot_lines + 1) if "odr_hz" in header else None
     wanted = {c: "int" for c in OFBE_LOGGER_COLUMNS}
-    body = _read_body(path, data, col_offset, col_line, ",", wanted)
+    body = read_body(path, data, col_offset, col_line, ",", wanted)
     limit = int(round(range_g * lsb))
     v = body.values
     axes = ("ax", "ay", "az")
@@ -119,8 +117,8 @@ def read_ofbe_logger(path: str | Path, device: str | None = None) -> Recording:
             else f"counts {counts[i].tolist()} outside {-limit}..{limit - 1}"
             for i in np.flatnonzero(t_bad | c_bad)
         ]
-        _drop(body, t_bad | c_bad, SKIP_OUT_OF_RANGE, details)
-    t_us, wraps = _clean_times(body, body.values["t_us"], MAX_STEP_S * 1e6, WRAP_US)
+        drop(body, t_bad | c_bad, SKIP_OUT_OF_RANGE, details)
+    t_us, wraps = clean_times(body, body.values["t_us"], MAX_STEP_S * 1e6, WRAP_US)
     t = t_us / 1e6
     v = body.values
     n = int(t.shape[0])
@@ -135,7 +133,7 @@ def read_ofbe_logger(path: str | Path, device: str | None = None) -> Recording:
     diag = ReadDiagnostics(path, col_line, body.lines_read, int(t.shape[0]), tuple(body.skipped),
                            gaps, wraps, int(saturated.sum()), boot_lines)
     return Recording(path, "ofbe-logger", t, acc, saturated,
-                     body.lines, _parse_utc(header.get("host_start_utc")), odr,
+                     body.lines, parse_utc(header.get("host_start_utc")), odr,
                      dict(header) | ({"device": device} if device else {}),
                      diag)
 
@@ -174,7 +172,7 @@ def write_ofbe_logger(
     counts = np.asarray(counts, dtype=np.int64)
     cols = [pa.array(np.asarray(t_us, dtype=np.int64) % WRAP_US)]
     cols += [pa.array(counts[:, i]) for i in range(3)]
-    data = _assemble(preamble, ",".join(OFBE_LOGGER_COLUMNS), _csv_body(cols), corrupt)
+    data = assemble(preamble, ",".join(OFBE_LOGGER_COLUMNS), csv_body(cols), corrupt)
     write_bytes_atomic(path, data)
 
 

@@ -14,7 +14,7 @@ import pyarrow as pa
 import pyarrow.csv as pacsv
 
 
-def _csv_body(columns: Sequence[pa.Array], delimiter: str = ",") -> bytes:
+def csv_body(columns: Sequence[pa.Array], delimiter: str = ",") -> bytes:
     """Data lines (no header) of equal-length columns, formatted by pyarrow."""
     table = pa.table(list(columns), names=[f"c{i}" for i in range(len(columns))])
     buf = io.BytesIO()
@@ -40,7 +40,7 @@ def fixed_point(values: np.ndarray, decimals: int) -> pa.Array:
 LineHook = Callable[[list[bytes]], list[bytes]]
 
 
-def _assemble(preamble: Sequence[str], header_line: str, body: bytes,
+def assemble(preamble: Sequence[str], header_line: str, body: bytes,
               corrupt: LineHook | None) -> bytes:
     if corrupt is not None:
         lines = body.split(b"\n")
