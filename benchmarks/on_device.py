@@ -115,7 +115,7 @@ def main(argv: list[str] | None = None) -> int:
     fold, protocol, bench_name = int(match.group(1)), model_path.parent.name, model_path.parent.parent.name
 
     from ofbe_data import load_dataset
-    from ofbe_model.benchmark.evaluation import protocol_splits
+    from ofbe_data.dataset.folds import protocol_splits
     from ofbe_model.deploy.c_header import (
         compile_harness,
         device_indices,

@@ -10,7 +10,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from ofbe_data.core.cli import add_jobs, add_params, add_scheduler, command, fail
+from ofbe_data.core.cli import add_jobs, add_params, add_scheduler, command, fail, with_examples
 from ofbe_data.core.errors import OfbeError
 from ofbe_data.io.typedconfig import read_section
 from ofbe_data.labelling.batch import expand_sessions
@@ -33,14 +33,16 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="reports/convergence", help="report folder (default: %(default)s)")
     add_params(p, "label", "the labelling parameters, and whose 'convergence:' section the recommendation "
                            "rule (e.g. params.yaml)")
-    p.add_argument("--axis", choices=AXES, help="axis of the recommendation (default x)")
-    p.add_argument("--statistic", choices=STATISTICS, help="statistic of the recommendation (default mean)")
+    p.add_argument("--axis", choices=AXES, help="axis of the recommendation (default: x)")
+    p.add_argument("--statistic", choices=STATISTICS, help="statistic of the recommendation (default: mean)")
     p.add_argument("--example", help="SESSION/RECORDING/DEVICE for the example curve "
                                      "(default: the one closest to the mean)")
     add_jobs(p)
     add_scheduler(p)
     p.add_argument("--quiet", action="store_true", help="no progress bar, no summary")
-    return p
+    return with_examples(
+        p, "ofbe-convergence raw/gravity-aligned --out mine/convergence --jobs 2",
+        "ofbe-convergence raw/gravity-aligned --params params.yaml   # the pipeline's label settings")
 
 
 @command(PROG)

@@ -19,7 +19,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from ofbe_data.core.cli import add_jobs, add_params, add_scheduler, command, fail, io_failure
+from ofbe_data.core.cli import add_jobs, add_params, add_scheduler, command, fail, io_failure, with_examples
 from ofbe_data.core.errors import ConfigError, OfbeError
 from ofbe_data.dataset.build import build_dataset, dataset_params_from
 from ofbe_data.dataset.export import export_dataset
@@ -36,7 +36,8 @@ def _parser() -> argparse.ArgumentParser:
                                             "with a Frictionless data package, a Croissant description, a "
                                             "card (Hugging Face configs, one per protocol) and checksums.")
     sub = p.add_subparsers(dest="command", required=True)
-    b = sub.add_parser("build", help="cut a labelled campaign into windows and assign folds")
+    build_help = "cut a labelled campaign into windows and assign folds"
+    b = sub.add_parser("build", help=build_help, description=build_help[0].upper() + build_help[1:] + ".")
     b.add_argument("labels", help="the campaign's label folder (processed/labels/<campaign>)")
     b.add_argument("--raw", required=True, help="the raw campaign folder the labels were made from")
     b.add_argument("--out", help="dataset folder (default: processed/datasets/<campaign>)")
@@ -53,18 +54,28 @@ def _parser() -> argparse.ArgumentParser:
     add_scheduler(b)
     b.add_argument("--force", action="store_true", help="replace an existing dataset folder")
     b.add_argument("--quiet", action="store_true", help="no progress bar, no summary")
-    v = sub.add_parser("verify", help="check a dataset's checksums, schema version and consistency, "
-                                            "reading every sample of the HDF5 and signal files")
-    v.add_argument("path")
-    e = sub.add_parser("export", help="write a verified, self-describing copy for sharing")
+    verify_help = ("check a dataset's checksums, schema version and consistency, reading every sample of "
+                   "the HDF5 and signal files")
+    v = sub.add_parser("verify", help=verify_help, description=verify_help[0].upper() + verify_help[1:] + ".")
+    v.add_argument("path", help="dataset folder (a built one, or an exported copy)")
+    export_help = "write a verified, self-describing copy for sharing"
+    e = sub.add_parser("export", help=export_help, description=export_help[0].upper() + export_help[1:] + ".")
     e.add_argument("path", help="dataset folder")
     e.add_argument("--out", required=True, help="new folder")
-    e.add_argument("--title")
+    e.add_argument("--title", help="the dataset's title on its card (default: the title it has)")
     e.add_argument("--licence", help="SPDX licence id of the data, e.g. CC-BY-4.0")
     e.add_argument("--author", action="append", help="author (repeat for several)")
     e.add_argument("--version", help="dataset version")
     e.add_argument("--force", action="store_true", help="replace an existing --out")
-    return p
+    with_examples(b, "ofbe-dataset build processed/labels/rotated --raw raw/rotated "
+                     "--out mine/datasets/rotated --jobs 2")
+    with_examples(v, "ofbe-dataset verify processed/datasets/rotated")
+    with_examples(e, "ofbe-dataset export processed/datasets/rotated --out share/rotated-v1 "
+                     "--licence CC-BY-4.0 --author 'A. Lab'")
+    return with_examples(p, "ofbe-dataset build processed/labels/rotated --raw raw/rotated --jobs 2",
+                         "ofbe-dataset verify processed/datasets/rotated",
+                         "ofbe-dataset export processed/datasets/rotated --out share/rotated-v1 "
+                         "--licence CC-BY-4.0")
 
 
 def _build(args: argparse.Namespace) -> int:

@@ -8,7 +8,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from ofbe_data.core.cli import command, fail
+from ofbe_data.core.cli import command, fail, with_examples
 from ofbe_data.core.errors import OfbeError
 from ofbe_data.reports.index import (
     DEFAULT_CAMPAIGNS,
@@ -39,7 +39,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--timings", help=f"JSON file of stage times, {TIMINGS_FORMAT}; a missing file is noted "
                                      "on the page")
     p.add_argument("--quiet", action="store_true", help="no summary line")
-    return p
+    return with_examples(p, "ofbe-index                      # reports/index.md from the pipeline's outputs")
 
 
 @command(PROG)

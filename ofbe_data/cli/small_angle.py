@@ -10,7 +10,7 @@ import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from ofbe_data.core.cli import command
+from ofbe_data.core.cli import command, with_examples
 from ofbe_data.labelling.smallangle import (
     MEASURES,
 )
@@ -42,16 +42,17 @@ def build_parser() -> argparse.ArgumentParser:
         description="Gravity leak of a levelled calibration over roll × pitch, and the tilt at which "
                     "it reaches a limit (paper §4).")
     p.add_argument("--out", type=Path, default=DEFAULT_OUT,
-                   help=f"output folder (default {DEFAULT_OUT})")
+                   help=f"output folder (default: {DEFAULT_OUT})")
     p.add_argument("--range-deg", type=_positive(90.0), default=10.0,
-                   help="grid half-width: roll and pitch span −R…+R degrees (default 10)")
+                   help="grid half-width: roll and pitch span −R…+R degrees (default: 10)")
     p.add_argument("--step-deg", type=_positive(), default=0.05,
-                   help="grid spacing, degrees (default 0.05)")
+                   help="grid spacing, degrees (default: 0.05)")
     p.add_argument("--limit-mg", type=_positive(1000.0), default=50.0,
-                   help="tolerated leak, mg (default 50)")
+                   help="tolerated leak, mg (default: 50)")
     p.add_argument("--measure", choices=MEASURES, default="max-axis",
                    help="leak measure: the largest per-axis leak (default) or the leak vector's norm")
-    return p
+    return with_examples(p, "ofbe-small-angle --out mine/small_angle",
+                         "ofbe-small-angle --out mine/small_angle --limit-mg 20")
 
 
 @command(PROG)

@@ -72,7 +72,7 @@ def interrupts_deferred() -> Iterator[None]:
     SIGINT is also blocked in this thread while the block runs, and a blocked signal stays
     blocked in a process started from it (the mask survives ``fork`` and ``exec``): a worker
     process started here cannot be interrupted before it ignores Ctrl-C itself
-    (:func:`ofbe_data.core.parallel._init_worker`). Outside the main thread, or where no Python
+    (:func:`ofbe_data.core.worker_setup.init_worker`). Outside the main thread, or where no Python
     handler takes the signals (Ctrl-C ignored in a worker), nothing changes.
     """
     if threading.current_thread() is not threading.main_thread():

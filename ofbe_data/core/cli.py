@@ -17,6 +17,7 @@ import os
 import re
 import shutil
 import sys
+import textwrap
 from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
@@ -81,6 +82,44 @@ def public_path(path: Path) -> Path:
     was to be given (``out/.ds.k2j4x8q1.tmp/windows.h5`` → ``out/ds/windows.h5``): what a user
     looks for, since the temporary folder is removed on failure."""
     return Path(*[m.group(1) if (m := _TEMPORARY.fullmatch(part)) else part for part in path.parts])
+
+
+class HelpFormatter(argparse.HelpFormatter):
+    """Every command's help layout: descriptions wrapped to the terminal, never inside a
+    hyphenated word (profile and option names stay whole); a block whose first line ends with
+    ``:`` and whose other lines are indented (``examples:``, ``formats:``) kept as written; an
+    option's default shown one way, ``(default: X)``, added where its help does not already say
+    it (options without a default, and flags, show none)."""
+
+    def _fill_text(self, text: str, width: int, indent: str) -> str:
+        blocks = []
+        for block in text.split("\n\n"):
+            lines = block.splitlines()
+            if len(lines) > 1 and lines[0].endswith(":") and all(ln.startswith("  ") for ln in lines[1:]):
+                blocks.append("\n".join(indent + ln for ln in lines))
+            else:
+                blocks.append(textwrap.fill(" ".join(block.split()), width, initial_indent=indent,
+                                            subsequent_indent=indent, break_on_hyphens=False))
+        return "\n\n".join(blocks)
+
+    def _split_lines(self, text: str, width: int) -> list[str]:
+        return textwrap.wrap(" ".join(text.split()), width, break_on_hyphens=False)
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ""
+        if ("%(default)" in text or "default" in text.lower() or action.default in (None, False)
+                or action.default is argparse.SUPPRESS or not action.option_strings):
+            return text
+        return f"{text} (default: %(default)s)"
+
+
+def with_examples(parser: argparse.ArgumentParser, *examples: str) -> argparse.ArgumentParser:
+    """Give ``parser`` the shared :class:`HelpFormatter` and an ``examples:`` block (one command
+    line each) after any epilog it has; returns it."""
+    parser.formatter_class = HelpFormatter
+    block = "examples:\n" + "\n".join(f"  {line}" for line in examples)
+    parser.epilog = f"{block}\n\n{parser.epilog}" if parser.epilog else block
+    return parser
 
 
 def command(prog: str) -> Callable[[Callable[..., int]], Callable[..., int]]:

@@ -145,4 +145,5 @@ def console_script(module: str, prog: str) -> Callable[[], Any]:
 
     script.__name__ = script.__qualname__ = prog.removeprefix("ofbe-").replace("-", "_")
     script.__doc__ = f"``{prog}`` (:mod:`{module}`)."
+    script.command_module = module  # type: ignore[attr-defined]  # what it runs, for tests and docs
     return script

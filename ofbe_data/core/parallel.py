@@ -48,6 +48,7 @@ from ofbe_data.core.scheduler import (
     death_reason,
     failure_reason,
 )
+from ofbe_data.core.worker_setup import init_worker
 
 __all__ = ["TaskError", "TaskFailure", "iter_ordered", "map_progress"]
 
@@ -57,18 +58,6 @@ R = TypeVar("R")
 STOP_S = 5.0
 """How long stopping the worker processes waits for them to end (after SIGTERM, and again after
 SIGKILL): an interrupted run never waits longer for a task."""
-
-
-def _init_worker(env: Mapping[str, str]) -> None:
-    """Worker set-up: its environment first (before any library reads it), and Ctrl-C left to
-    the parent, which reports it once (no traceback per worker).
-
-    A worker started by :class:`_Pool` starts with SIGINT blocked, so a Ctrl-C before this point
-    is pending, not raised: ignoring the signal discards it, and it is unblocked after.
-    """
-    os.environ.update(env)
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
 
 
 class _Stopped(BaseException):
@@ -107,7 +96,7 @@ def _serve(conn: connection.Connection, env: Mapping[str, str]) -> None:
     ``(index, True, result)`` or ``(index, False, exception)``, until told to stop (None) or its
     parent is gone. SIGTERM ends the task with its clean-up (``finally``, atomic writes), then
     the process, by that signal."""
-    _init_worker(env)
+    init_worker(env)
     signal.signal(signal.SIGTERM, _stop)
     try:
         while True:
@@ -158,7 +147,7 @@ class _Pool:
     context
         The ``multiprocessing`` context that starts the workers.
     env
-        Their environment (:func:`_init_worker`).
+        Their environment (:func:`init_worker`).
     size
         How many may run at once.
     """

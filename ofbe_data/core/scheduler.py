@@ -43,6 +43,7 @@ from typing import Any
 
 from ofbe_data.core.atomic import interrupts_deferred
 from ofbe_data.core.errors import OfbeError
+from ofbe_data.core.worker_setup import init_worker
 
 PROCESSES = "processes"
 """The local process pool (the default)."""
@@ -161,9 +162,7 @@ _CHILDREN: dict[tuple[tuple[str, str], ...], ProcessPoolExecutor] = {}
 def _init_isolated(env: Mapping[str, str], parent: int) -> None:
     """Set-up of a :func:`run_isolated` process: the pool worker's, plus a watch that ends it
     when its Dask worker is gone (a killed worker cannot shut it down)."""
-    from ofbe_data.core.parallel import _init_worker
-
-    _init_worker(env)
+    init_worker(env)
 
     def watch() -> None:
         while os.getppid() == parent:

@@ -34,9 +34,9 @@ from ofbe_data.dataset.store import (
     SHARD_COLUMNS,
     SIGNAL_COLUMN,
     UNITS,
+    ColumnSpec,
     DatasetInfo,
-    _all_columns,
-    _Column,
+    all_columns,
 )
 
 CROISSANT_VERSION = "http://mlcommons.org/croissant/1.1"
@@ -98,7 +98,7 @@ def _file_object(name: str, size: int, digest: str, mediatype: str, description:
             "contentUrl": name, "contentSize": f"{size} B", "encodingFormat": mediatype, "sha256": digest}
 
 
-def _field(record_set: str, col: _Column, source: dict[str, Any]) -> dict[str, Any]:
+def _field(record_set: str, col: ColumnSpec, source: dict[str, Any]) -> dict[str, Any]:
     text = col.description + (f" ({col.unit})" if col.unit else "") + (
         "; null when unknown" if col.nullable else "")
     return {"@type": "cr:Field", "@id": f"{record_set}/{col.name}", "name": col.name, "description": text,
@@ -164,10 +164,10 @@ def croissant_document(info: DatasetInfo, files: Mapping[str, tuple[int, str]],
         "description": "one record per window: identity, label (bias_x/y/z), metadata and the test fold "
                        "of each protocol (fold_<protocol>, -1: training only)",
         "key": {"@id": "windows/window_id"},
-        "field": [_field("windows", c, windows_src) for c in _all_columns(protocols, sharded)]}]
+        "field": [_field("windows", c, windows_src) for c in all_columns(protocols, sharded)]}]
     if signals:
         src = {"fileSet": {"@id": SIGNAL_FILESET}} if sharded else {"fileObject": {"@id": signals[0]}}
-        columns = [c for c in _all_columns(protocols, sharded) if c.name not in SHARD_COLUMNS]
+        columns = [c for c in all_columns(protocols, sharded) if c.name not in SHARD_COLUMNS]
         record_sets.append({
             "@type": "cr:RecordSet", "@id": "signals", "name": "signals",
             "description": f"one record per window with its samples: X, float32 array ({t}, 3), axes "

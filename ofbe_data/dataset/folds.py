@@ -10,7 +10,9 @@ benchmark datasets and, for a protocol, into folds:
   (methods.md: the first T samples of the stationary segment).
 
 Both ``ofbe-train`` and ``ofbe-benchmark`` use these functions, so a model is always tested
-on exactly the signals its training excluded.
+on exactly the signals its training excluded; the deployed models are fitted per benchmark
+dataset. They belong to the dataset wing: which windows train and which test is a property of
+the dataset and its protocols, not of any estimator.
 """
 
 from __future__ import annotations
@@ -21,8 +23,13 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from ofbe_data.core.errors import OfbeError
 from ofbe_data.dataset.store import fold_column
-from ofbe_model.estimators.base import EstimatorError
+
+
+class FoldError(OfbeError):
+    """A dataset has no column for the protocol asked for, or a fold without a test signal."""
+
 
 POOLED_KINDS = ("gravity-aligned",)
 """Kinds evaluated pooled over devices (the paper's gravity-aligned set); other kinds are
@@ -76,13 +83,13 @@ def protocol_splits(meta: pd.DataFrame, kind: str, protocol: str) -> Iterator[Sp
 
     Raises
     ------
-    EstimatorError
+    FoldError
         The dataset has no column for the protocol, or a fold has no test signal.
     """
     col = fold_column(protocol)
     if col not in meta.columns:
         have = sorted(c.removeprefix("fold_") for c in meta.columns if c.startswith("fold_"))
-        raise EstimatorError(f"protocol: expected one of this dataset's protocols ({', '.join(have)}), "
+        raise FoldError(f"protocol: expected one of this dataset's protocols ({', '.join(have)}), "
                              f"found {protocol!r}")
     folds = meta[col].to_numpy()
     first = meta["window_index"].to_numpy() == 0
@@ -92,5 +99,5 @@ def protocol_splits(meta: pd.DataFrame, kind: str, protocol: str) -> Iterator[Sp
             train = rows[f != k]
             test = rows[(f == k) & first[rows]]
             if test.size == 0:
-                raise EstimatorError(f"{name}, {protocol} fold {k}: expected test signals, found none")
+                raise FoldError(f"{name}, {protocol} fold {k}: expected test signals, found none")
             yield Split(name, devices, k, train, test)

@@ -42,21 +42,21 @@ from ofbe_data.dataset.store import (
     SIGNAL_COLUMN,
     SUMS_NAME,
     UNITS,
+    ColumnSpec,
     DatasetError,
     DatasetInfo,
-    _all_columns,
-    _check_info_matches,
-    _check_version,
-    _Column,
-    _json_bytes,
-    _read_h5_header,
-    _read_parquet_provenance,
-    _same_signal_schema,
-    _signal_schema,
+    all_columns,
+    check_info_matches,
+    check_version,
     fold_column,
+    json_bytes,
+    read_h5_header,
+    read_parquet_provenance,
+    same_signal_schema,
     sha256_file,
     shard_layout,
     signal_names,
+    signal_schema,
 )
 
 # ---------------------------------------------------------------------------------------------
@@ -133,7 +133,7 @@ def _package_name(name: str) -> str:
     return re.sub(r"[^a-z0-9._-]+", "-", name.lower()).strip("-") or "dataset"
 
 
-def _field_entry(col: _Column) -> dict[str, Any]:
+def _field_entry(col: ColumnSpec) -> dict[str, Any]:
     entry: dict[str, Any] = {"name": col.name, "type": {"string": "string", "int": "integer",
                                                         "float": "number"}[col.kind],
                              "description": col.description,
@@ -215,7 +215,7 @@ def _datapackage(info: DatasetInfo, attrs: Mapping[str, Any], meta: pd.DataFrame
              "description": ("one row per window, same order as windows.h5" if not sharded else
                              "the index: one row per window, in window_id order, with its shard file and "
                              "row there (shard, shard_row)"),
-             "schema": {"fields": [_field_entry(c) for c in _all_columns(list(info.protocols), sharded)],
+             "schema": {"fields": [_field_entry(c) for c in all_columns(list(info.protocols), sharded)],
                         "primaryKey": "window_id"}},
             *_signal_resources(info, files, signals, layout),
         ],
@@ -302,7 +302,7 @@ def hf_configs(info: DatasetInfo, signals: Sequence[str]) -> list[dict[str, Any]
         The ``configs`` entries, ready for YAML.
     """
     protocols = list(info.protocols)
-    columns = [c for c in _all_columns(protocols) if c.name not in SHARD_COLUMNS]
+    columns = [c for c in all_columns(protocols) if c.name not in SHARD_COLUMNS]
     out: list[dict[str, Any]] = []
     for proto in protocols or [None]:  # fresh objects for each config: YAML would alias shared ones
         signal = {"name": SIGNAL_COLUMN,
@@ -442,7 +442,7 @@ def _readme(info: DatasetInfo, attrs: Mapping[str, Any], meta: pd.DataFrame,
     out += _md_table(["column", "type", "unit", "meaning"],
                      [[c.name, {"string": "string", "int": "int64", "float": "float64"}[c.kind]
                        + (" (nullable)" if c.nullable else ""), c.unit or "", c.description]
-                      for c in _all_columns(protos, layout is not None)])
+                      for c in all_columns(protos, layout is not None)])
     where = f"processed/datasets/{info.name}"
     out += ["", "## Loading", "", "```python", "from ofbe_data import load_dataset",
             "", f'ds = load_dataset("{where}")   # checks SHA256SUMS and the schema version',
@@ -517,13 +517,13 @@ def _present_signals(folder: Path, layout: list[tuple[str, int]] | None,
         missing = next(n for n in names if n not in present)
         raise DatasetError(folder / missing, f"a signal file like the others ({', '.join(present)})",
                            "no such file")
-    expected = _signal_schema(list(info.protocols), info.window_length, layout is not None)
+    expected = signal_schema(list(info.protocols), info.window_length, layout is not None)
     for name in names:
         try:
             schema = pq.read_schema(folder / name)
         except (OSError, pa.ArrowException) as exc:
             raise DatasetError(folder / name, "a Parquet file", f"an unreadable one ({exc})") from exc
-        if not _same_signal_schema(schema, expected, info.window_length):
+        if not same_signal_schema(schema, expected, info.window_length):
             raise DatasetError(folder / name, f"the columns {[f'{f.name}:{f.type}' for f in expected]}",
                                f"{[f'{f.name}:{f.type}' for f in schema]}")
     return names
@@ -555,19 +555,19 @@ def write_package_files(folder: str | Path, info: DatasetInfo) -> None:
     layout = shard_layout(folder)
     h5_names = [H5_NAME] if layout is None else [name for name, _ in layout]
     h5_path = folder / h5_names[0]
-    attrs = _read_h5_header(h5_path)
-    _check_info_matches(info, attrs, h5_path)
-    _check_version(pq_path, _read_parquet_provenance(pq_path).get("schema_version"))
+    attrs = read_h5_header(h5_path)
+    check_info_matches(info, attrs, h5_path)
+    check_version(pq_path, read_parquet_provenance(pq_path).get("schema_version"))
     meta = pq.read_table(pq_path).replace_schema_metadata(None).to_pandas()
     signals = _present_signals(folder, layout, info)
     files = {n: ((folder / n).stat().st_size, sha256_file(folder / n))
              for n in (*h5_names, PARQUET_NAME, *(signals or ()))}
     sizes = fold_sizes(meta)
     write_bytes_atomic(folder / DATAPACKAGE_NAME,
-                       _json_bytes(_datapackage(info, attrs, meta, files, sizes, layout, signals)))
+                       json_bytes(_datapackage(info, attrs, meta, files, sizes, layout, signals)))
     urls = {k: url for k, (_, url) in _LICENCES.items()}
     write_bytes_atomic(folder / CROISSANT_NAME,
-                       _json_bytes(croissant_document(info, files, layout, signals, urls)))
+                       json_bytes(croissant_document(info, files, layout, signals, urls)))
     card = (hf_front_matter(info, len(meta), signals)
             + _readme(info, attrs, meta, files, sizes, layout, signals))
     write_bytes_atomic(folder / README_NAME, card.encode())

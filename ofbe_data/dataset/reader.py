@@ -20,8 +20,6 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from ofbe_data.dataset.store import (
-    _SUMS_LINE_RE,
-    _TF_BLOCK,
     CROISSANT_NAME,
     DATAPACKAGE_NAME,
     H5_NAME,
@@ -32,21 +30,23 @@ from ofbe_data.dataset.store import (
     SHARD_RE,
     SIGNAL_COLUMN,
     SIGNALS_RE,
+    SUMS_LINE_RE,
     SUMS_NAME,
+    TF_BLOCK,
     ChecksumError,
     DatasetError,
-    _arrow_schema,
-    _check_version,
-    _read_h5_header,
-    _read_json,
-    _read_parquet_provenance,
-    _same_signal_schema,
-    _signal_schema,
+    arrow_schema,
+    check_version,
     read_dataset_info,
+    read_h5_header,
+    read_json,
+    read_parquet_provenance,
+    same_signal_schema,
     sha256_file,
     shard_layout,
     shard_name,
     signal_names,
+    signal_schema,
 )
 from ofbe_data.dataset.verify_signals import compare_signals
 
@@ -61,7 +61,7 @@ def _read_sums(path: Path) -> dict[str, str]:
     for i, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
         if not line.strip():
             continue
-        m = _SUMS_LINE_RE.match(line)
+        m = SUMS_LINE_RE.match(line)
         if m is None:
             raise DatasetError(path, "'<64 hex digits>  <file name>'", repr(line), f"line {i}")
         name = m.group(2)
@@ -97,7 +97,7 @@ def _h5_names_of(sums: dict[str, str]) -> list[str]:
 def _compare_meta(h5_path: Path, pq_path: Path, table: pa.Table, protocols: Sequence[str],
                   sharded: bool = False) -> None:
     """An HDF5 file's y and meta/ agree with its rows of windows.parquet, column by column, row by row."""
-    schema = _arrow_schema(protocols, sharded)
+    schema = arrow_schema(protocols, sharded)
     found = [f"{f.name}:{f.type}" for f in table.schema]
     if found != [f"{f.name}:{f.type}" for f in schema]:
         raise DatasetError(pq_path, f"the columns {[f'{f.name}:{f.type}' for f in schema]}", f"{found}")
@@ -149,7 +149,7 @@ def _check_samples(folder: Path, h5_names: Sequence[str], names: Sequence[str], 
     files, each one's schema (``windows.parquet``'s columns plus X, (T, 3) float32) and row count
     (its HDF5 file's windows), then its rows against the HDF5 file's X bit for bit and against its
     rows of the index (:func:`~ofbe_data.dataset.verify_signals.compare_signals`)."""
-    schema = _signal_schema(protocols, t, sharded)
+    schema = signal_schema(protocols, t, sharded)
     columns = [c for c in schema.names if c != SIGNAL_COLUMN]
     first = 0
     for i, (h5_name, n) in enumerate(zip(h5_names, counts, strict=True)):
@@ -160,7 +160,7 @@ def _check_samples(folder: Path, h5_names: Sequence[str], names: Sequence[str], 
                     found, rows = pf.schema_arrow, pf.metadata.num_rows
             except (OSError, pa.ArrowException) as exc:
                 raise DatasetError(path, "a readable Parquet file", f"an unreadable one ({exc})") from exc
-            if not _same_signal_schema(found, schema, t):
+            if not same_signal_schema(found, schema, t):
                 raise DatasetError(path, f"the columns {[f'{f.name}:{f.type}' for f in schema]}",
                                    f"{[f'{f.name}:{f.type}' for f in found]}")
             if rows != n:
@@ -172,7 +172,7 @@ def _check_samples(folder: Path, h5_names: Sequence[str], names: Sequence[str], 
 def _check_croissant(folder: Path, actual: dict[str, str]) -> None:
     """Every file croissant.json names with a sha256 has that hash."""
     path = folder / CROISSANT_NAME
-    doc = _read_json(path)
+    doc = read_json(path)
     for entry in doc.get("distribution", []):
         if not isinstance(entry, dict) or "sha256" not in entry:
             continue
@@ -199,8 +199,8 @@ def _check_shards(folder: Path, h5_names: Sequence[str], prov: dict[str, Any], t
     counts, first = [], 0
     for i, (name, n) in enumerate(layout):
         path = folder / name
-        attrs = _read_h5_header(path)
-        _check_version(path, attrs.get("schema_version"))
+        attrs = read_h5_header(path)
+        check_version(path, attrs.get("schema_version"))
         expected_attrs = {**common, "shard": i, "shard_windows": per, "first_window_id": first}
         for key, value in expected_attrs.items():
             if attrs.get(key) != value:
@@ -278,7 +278,7 @@ def verify_dataset(path: str | Path) -> dict[str, Any]:
     signals = _signals_of(sums)
     sharded = h5_names != [H5_NAME]
     dp_path, h5_path, pq_path = folder / DATAPACKAGE_NAME, folder / h5_names[0], folder / PARQUET_NAME
-    doc = _read_json(dp_path)
+    doc = read_json(dp_path)
     resources = {r.get("path"): r for r in doc.get("resources", []) if isinstance(r, dict)}
     for name in (*h5_names, PARQUET_NAME, *signals):
         res = resources.get(name)
@@ -294,12 +294,12 @@ def verify_dataset(path: str | Path) -> dict[str, Any]:
         if res.get("bytes") != size:
             raise DatasetError(dp_path, f"bytes = {size} (the size of {name})", repr(res.get("bytes")),
                                f"resources[{name}].bytes")
-    attrs = _read_h5_header(h5_path)
-    _check_version(h5_path, attrs.get("schema_version"))
-    prov = _read_parquet_provenance(pq_path)
-    _check_version(pq_path, prov.get("schema_version"))
+    attrs = read_h5_header(h5_path)
+    check_version(h5_path, attrs.get("schema_version"))
+    prov = read_parquet_provenance(pq_path)
+    check_version(pq_path, prov.get("schema_version"))
     ofbe = doc.get("ofbe") if isinstance(doc.get("ofbe"), dict) else {}
-    _check_version(dp_path, ofbe.get("schema_version"), "ofbe.schema_version")
+    check_version(dp_path, ofbe.get("schema_version"), "ofbe.schema_version")
     info = read_dataset_info(folder)
     for key in ("name", "campaign", "window_length", "stride", "protocols"):
         if prov.get(key) != attrs.get(key):
@@ -459,16 +459,16 @@ def _layout(folder: Path) -> tuple[list[Shard], dict[str, Any] | None]:
     for name, n in layout:
         shards.append(Shard(folder / name, first, first + n))
         first += n
-    return shards, _read_parquet_provenance(folder / PARQUET_NAME)["shards"]
+    return shards, read_parquet_provenance(folder / PARQUET_NAME)["shards"]
 
 
 def _info_dict(folder: Path, h5_path: Path, shards: dict[str, Any] | None) -> dict[str, Any]:
-    attrs = _read_h5_header(h5_path)
+    attrs = read_h5_header(h5_path)
     for key in _NOT_INFO:
         attrs.pop(key, None)
-    _check_version(h5_path, attrs.get("schema_version"))
+    check_version(h5_path, attrs.get("schema_version"))
     pq_path = folder / PARQUET_NAME
-    _check_version(pq_path, _read_parquet_provenance(pq_path).get("schema_version"))
+    check_version(pq_path, read_parquet_provenance(pq_path).get("schema_version"))
     return {**attrs, "dataset_info": read_dataset_info(folder).to_dict(),
             **({"shards": shards} if shards is not None else {})}
 
@@ -556,8 +556,8 @@ def _window_generator(shards: Sequence[Shard], y: np.ndarray, x: np.ndarray | No
         for shard in shards:
             with h5py.File(shard.path, "r") as f:
                 xs = f["X"]
-                for start in range(0, xs.shape[0], _TF_BLOCK):
-                    block = xs[start:start + _TF_BLOCK]
+                for start in range(0, xs.shape[0], TF_BLOCK):
+                    block = xs[start:start + TF_BLOCK]
                     for i in range(block.shape[0]):
                         yield block[i], y[shard.start + start + i]
 

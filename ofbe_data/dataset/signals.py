@@ -37,10 +37,10 @@ from ofbe_data.dataset.store import (
     SIGNAL_COLUMN,
     UNITS,
     DatasetError,
-    _read_parquet_provenance,
-    _signal_schema,
+    read_parquet_provenance,
     shard_layout,
     signal_names,
+    signal_schema,
     signal_type,
 )
 
@@ -143,7 +143,7 @@ def write_signal_files(folder: str | Path) -> list[str]:
     """
     folder = Path(folder)
     pq_path = folder / PARQUET_NAME
-    prov = _read_parquet_provenance(pq_path)
+    prov = read_parquet_provenance(pq_path)
     t = prov.get("window_length")
     protocols = prov.get("protocols")
     if isinstance(t, bool) or not isinstance(t, int) or t < 1 or not isinstance(protocols, dict):
@@ -152,7 +152,7 @@ def write_signal_files(folder: str | Path) -> list[str]:
     layout = shard_layout(folder)
     sharded = layout is not None
     h5_files = [(H5_NAME, None)] if layout is None else [(name, n) for name, n in layout]
-    schema = _signal_schema(list(protocols), t, sharded)
+    schema = signal_schema(list(protocols), t, sharded)
     try:
         table = pq.read_table(pq_path).replace_schema_metadata(None)
     except (OSError, pa.ArrowException) as exc:

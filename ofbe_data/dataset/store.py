@@ -90,9 +90,9 @@ PAPER_TITLE = ("Orientation-Free Neural Network-Based Bias Estimation for Low-Co
                "Accelerometers")
 PAPER_AUTHORS = ("Levin", "Klein")
 
-_TF_BLOCK = 256  # windows read from the file at a time by the tf.data generator
+TF_BLOCK = 256  # windows read from the file at a time by the tf.data generator
 _PROTOCOL_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]*$")
-_SUMS_LINE_RE = re.compile(r"^([0-9a-f]{64}) [ *](.+)$")
+SUMS_LINE_RE = re.compile(r"^([0-9a-f]{64}) [ *](.+)$")
 SHARD_RE = re.compile(r"^windows-(\d{5})\.h5$")
 """Names of shard files: ``windows-<5 digits>.h5``."""
 SIGNALS_RE = re.compile(r"^signals(-\d{5})?\.parquet$")
@@ -164,7 +164,7 @@ def spdx_licence(value: str, source: str = "licence") -> str:
 
 
 @dataclass(frozen=True)
-class _Column:
+class ColumnSpec:
     """One fixed column of ``windows.parquet``: kind is ``string``, ``int`` or ``float``."""
 
     name: str
@@ -174,42 +174,42 @@ class _Column:
     nullable: bool = False
 
 
-_COLUMNS: tuple[_Column, ...] = (
-    _Column("window_id", "int", "row index of the window in windows.h5"),
-    _Column("campaign", "string", "campaign id"),
-    _Column("session", "string", "session id"),
-    _Column("recording", "string", "recording id within the session"),
-    _Column("device", "string", "device (DUT) id"),
-    _Column("power_cycle", "int", "power cycle of the device: the bias instance"),
-    _Column("window_index", "int",
+_COLUMNS: tuple[ColumnSpec, ...] = (
+    ColumnSpec("window_id", "int", "row index of the window in windows.h5"),
+    ColumnSpec("campaign", "string", "campaign id"),
+    ColumnSpec("session", "string", "session id"),
+    ColumnSpec("recording", "string", "recording id within the session"),
+    ColumnSpec("device", "string", "device (DUT) id"),
+    ColumnSpec("power_cycle", "int", "power cycle of the device: the bias instance"),
+    ColumnSpec("window_index", "int",
             "index of the window within its recording's stationary segment; 0 is the first window "
             "(the test signal)"),
-    _Column("start_sample", "int",
+    ColumnSpec("start_sample", "int",
             "first sample of the window, counted from the start of the stationary segment", "sample"),
-    *(_Column(f"bias_{a}", "float", f"apparent-bias label b_app, {a} axis, sensor frame", UNITS)
+    *(ColumnSpec(f"bias_{a}", "float", f"apparent-bias label b_app, {a} axis, sensor frame", UNITS)
       for a in "xyz"),
-    *(_Column(f"offset_{a}", "float",
+    *(ColumnSpec(f"offset_{a}", "float",
               f"zero-g offset b, {a} axis, sensor frame, when the campaign fit determines it (else null)",
               UNITS, nullable=True) for a in "xyz"),
-    *(_Column(f"gravity_{a}", "float", f"unit specific-force direction u, {a} component, sensor frame", "1")
-      for a in "xyz"),
-    _Column("roll_deg", "float", "roll of the device implied by u", "deg"),
-    _Column("pitch_deg", "float", "pitch of the device implied by u", "deg"),
-    _Column("g_local", "float", "local gravity magnitude", UNITS),
-    _Column("fs_hz", "float", "measured sample rate of the device in this recording", "Hz"),
-    _Column("label_method", "string", "how the label was made (level / reference-rodrigues / campaign-fit / "
-            "multi-position)"),
-    _Column("raw_sha256", "string", "SHA-256 of the raw device file labelled"),
+    *(ColumnSpec(f"gravity_{a}", "float", f"unit specific-force direction u, {a} component, sensor frame",
+                 "1") for a in "xyz"),
+    ColumnSpec("roll_deg", "float", "roll of the device implied by u", "deg"),
+    ColumnSpec("pitch_deg", "float", "pitch of the device implied by u", "deg"),
+    ColumnSpec("g_local", "float", "local gravity magnitude", UNITS),
+    ColumnSpec("fs_hz", "float", "measured sample rate of the device in this recording", "Hz"),
+    ColumnSpec("label_method", "string",
+               "how the label was made (level / reference-rodrigues / campaign-fit / multi-position)"),
+    ColumnSpec("raw_sha256", "string", "SHA-256 of the raw device file labelled"),
 )
 
 #: The fixed columns of ``windows.parquet``, in order; the fold columns follow them.
 WINDOW_COLUMNS: list[str] = [c.name for c in _COLUMNS]
-_COLUMN_BY_NAME = {c.name: c for c in _COLUMNS}
+COLUMN_BY_NAME = {c.name: c for c in _COLUMNS}
 #: Columns that identify a recording's windows (one label per recording and device).
 RECORDING_KEY = ("campaign", "session", "recording", "device")
 #: Columns of a sharded dataset's index (``windows.parquet``), right after ``window_id``.
 SHARD_COLUMNS = ("shard", "shard_row")
-_PER_WINDOW = ("window_id", "window_index", "start_sample", *SHARD_COLUMNS)
+PER_WINDOW = ("window_id", "window_index", "start_sample", *SHARD_COLUMNS)
 _ARROW_TYPES = {"string": pa.string(), "int": pa.int64(), "float": pa.float64()}
 
 
@@ -229,24 +229,24 @@ def fold_column(protocol: str) -> str:
     return f"fold_{protocol}"
 
 
-def _fold_doc(protocol: str) -> _Column:
-    return _Column(fold_column(protocol), "int",
+def _fold_doc(protocol: str) -> ColumnSpec:
+    return ColumnSpec(fold_column(protocol), "int",
                    f"test fold of the window's recording under protocol {protocol!r}, -1 when it is only "
                    "ever used for training")
 
 
-_SHARD_DOCS = (_Column("shard", "int", "shard file holding the window: windows-<shard, 5 digits>.h5"),
-               _Column("shard_row", "int", "row of the window within its shard file"))
+_SHARD_DOCS = (ColumnSpec("shard", "int", "shard file holding the window: windows-<shard, 5 digits>.h5"),
+               ColumnSpec("shard_row", "int", "row of the window within its shard file"))
 
 
-def _all_columns(protocols: Sequence[str], sharded: bool = False) -> list[_Column]:
+def all_columns(protocols: Sequence[str], sharded: bool = False) -> list[ColumnSpec]:
     shard = list(_SHARD_DOCS) if sharded else []
     return [_COLUMNS[0], *shard, *_COLUMNS[1:], *(_fold_doc(p) for p in protocols)]
 
 
-def _arrow_schema(protocols: Sequence[str], sharded: bool = False) -> pa.Schema:
+def arrow_schema(protocols: Sequence[str], sharded: bool = False) -> pa.Schema:
     return pa.schema([pa.field(c.name, _ARROW_TYPES[c.kind], nullable=c.nullable)
-                      for c in _all_columns(protocols, sharded)])
+                      for c in all_columns(protocols, sharded)])
 
 
 def signal_type(window_length: int) -> pa.DataType:
@@ -256,9 +256,9 @@ def signal_type(window_length: int) -> pa.DataType:
     return pa.list_(pa.field("element", inner), window_length)
 
 
-def _signal_schema(protocols: Sequence[str], window_length: int, sharded: bool = False) -> pa.Schema:
+def signal_schema(protocols: Sequence[str], window_length: int, sharded: bool = False) -> pa.Schema:
     """Columns of a signal Parquet file: those of ``windows.parquet``, then :data:`SIGNAL_COLUMN`."""
-    base = _arrow_schema(protocols, sharded)
+    base = arrow_schema(protocols, sharded)
     return base.append(pa.field(SIGNAL_COLUMN, signal_type(window_length), nullable=False))
 
 
@@ -269,7 +269,7 @@ def _is_signal_type(t: pa.DataType, window_length: int) -> bool:
             and t.value_type.value_type == pa.float32())
 
 
-def _same_signal_schema(found: pa.Schema, expected: pa.Schema, window_length: int) -> bool:
+def same_signal_schema(found: pa.Schema, expected: pa.Schema, window_length: int) -> bool:
     """Same column names and types, X a (T, 3) float32 window whatever its list items are called
     (Parquet's LIST says ``element``, Arrow ``item``: readers of other versions may differ)."""
     return found.names == expected.names and all(
@@ -428,7 +428,7 @@ class DatasetInfo:
             raise DatasetError(source, exc.expected, exc.found, f"dataset_info.{exc.key}") from exc
 
 
-def _json_bytes(obj: Any) -> bytes:
+def json_bytes(obj: Any) -> bytes:
     return (json.dumps(obj, indent=2, ensure_ascii=False, allow_nan=False) + "\n").encode()
 
 
@@ -442,7 +442,7 @@ def _plain(value: Any) -> Any:
     return value
 
 
-def _read_h5_header(path: Path) -> dict[str, Any]:
+def read_h5_header(path: Path) -> dict[str, Any]:
     """Root attributes (``protocols`` parsed) plus ``n_windows`` from the shape of X."""
     if not path.is_file():
         raise DatasetError(path, "an HDF5 file", "no such file")
@@ -460,7 +460,7 @@ def _read_h5_header(path: Path) -> dict[str, Any]:
     return attrs
 
 
-def _read_parquet_provenance(path: Path) -> dict[str, Any]:
+def read_parquet_provenance(path: Path) -> dict[str, Any]:
     if not path.is_file():
         raise DatasetError(path, "a Parquet file", "no such file")
     try:
@@ -475,7 +475,7 @@ def _read_parquet_provenance(path: Path) -> dict[str, Any]:
         raise DatasetError(path, "JSON under schema metadata key 'ofbe'", "invalid JSON") from exc
 
 
-def _read_json(path: Path) -> dict[str, Any]:
+def read_json(path: Path) -> dict[str, Any]:
     if not path.is_file():
         raise DatasetError(path, "a JSON file", "no such file")
     try:
@@ -487,14 +487,14 @@ def _read_json(path: Path) -> dict[str, Any]:
     return doc
 
 
-def _check_version(path: Path, found: Any, field: str = "schema_version") -> None:
+def check_version(path: Path, found: Any, field: str = "schema_version") -> None:
     if found != SCHEMA_VERSION:
         raise DatasetError(path, f"{SCHEMA_VERSION!r}", repr(found), field)
 
 
-def _check_info_matches(info: DatasetInfo, attrs: Mapping[str, Any], path: Path) -> None:
+def check_info_matches(info: DatasetInfo, attrs: Mapping[str, Any], path: Path) -> None:
     """The structural fields of ``info`` agree with windows.h5's root attributes."""
-    _check_version(path, attrs.get("schema_version"))
+    check_version(path, attrs.get("schema_version"))
     for key in ("name", "campaign", "kind", "window_length", "stride", "fs_hz", "protocols"):
         if attrs.get(key) != getattr(info, key):
             raise DatasetError(path, f"{getattr(info, key)!r} (as in the dataset description)",
@@ -522,7 +522,7 @@ def shard_layout(folder: str | Path) -> list[tuple[str, int]] | None:
     if (folder / H5_NAME).exists() or not (folder / PARQUET_NAME).is_file():
         return None
     pq_path = folder / PARQUET_NAME
-    shards = _read_parquet_provenance(pq_path).get("shards")
+    shards = read_parquet_provenance(pq_path).get("shards")
     if shards is None:
         return None  # a single-file dataset whose windows.h5 is missing: reported where it is opened
     files = shards.get("files") if isinstance(shards, dict) else None
@@ -557,13 +557,13 @@ def read_dataset_info(path: str | Path) -> DatasetInfo:
     """
     folder = Path(path)
     dp_path = folder / DATAPACKAGE_NAME
-    doc = _read_json(dp_path)
+    doc = read_json(dp_path)
     ofbe = doc.get("ofbe")
     if not isinstance(ofbe, dict) or "dataset_info" not in ofbe:
         raise DatasetError(dp_path, "an 'ofbe' object with 'dataset_info'", "none", "ofbe")
     info = DatasetInfo.from_dict(ofbe["dataset_info"], dp_path)
     h5_path = header_h5(folder)
-    _check_info_matches(info, _read_h5_header(h5_path), h5_path)
+    check_info_matches(info, read_h5_header(h5_path), h5_path)
     return info
 
 

@@ -25,21 +25,21 @@ from ofbe_data.dataset.chunks import Chunk, ChunkSink, x_dataset
 from ofbe_data.dataset.package import write_package_files
 from ofbe_data.dataset.signals import write_signal_files
 from ofbe_data.dataset.store import (
-    _COLUMN_BY_NAME,
-    _PER_WINDOW,
+    COLUMN_BY_NAME,
     DATASET_FORMAT,
     FRAME,
     H5_LIBVER,
     H5_NAME,
     PARQUET_NAME,
+    PER_WINDOW,
     RECORDING_KEY,
     SCHEMA_VERSION,
     UNITS,
     WINDOW_COLUMNS,
     DatasetError,
     DatasetInfo,
-    _all_columns,
-    _arrow_schema,
+    all_columns,
+    arrow_schema,
     fold_column,
     shard_name,
 )
@@ -122,7 +122,7 @@ def _normalise_meta(meta: pd.DataFrame, protocols: Mapping[str, Mapping[str, Any
     out: dict[str, np.ndarray] = {}
     for name in expected:
         col = meta[name]
-        doc = _COLUMN_BY_NAME.get(name)
+        doc = COLUMN_BY_NAME.get(name)
         if doc is None:  # fold column
             arr = _as_ints(col, name, path)
             n_folds = protocols[name[len("fold_"):]].get("n_folds")
@@ -153,7 +153,7 @@ def _check_recordings(cols: Mapping[str, np.ndarray], path: Path) -> None:
         raise DatasetError(path, "one window per (recording, device, window_index)",
                            f"window_index {row['window_index']} twice for "
                            f"{'/'.join(str(row[k]) for k in keys)}", "window_index")
-    level = [c for c in frame.columns if c not in (*keys, *_PER_WINDOW)]
+    level = [c for c in frame.columns if c not in (*keys, *PER_WINDOW)]
     counts = frame.groupby(keys, sort=False, dropna=False)[level].nunique(dropna=False)
     bad = counts > 1
     if bad.to_numpy().any():
@@ -446,7 +446,7 @@ class WindowWriter:
         assert self._file is not None
         f = self._file
         n = self._shard_n
-        columns = _all_columns(list(self.info.protocols), sharded)
+        columns = all_columns(list(self.info.protocols), sharded)
         y = np.column_stack([cols["bias_x"], cols["bias_y"], cols["bias_z"]]).astype(np.float64)
         ds_y = f.create_dataset("y", data=y, chunks=(min(n, 4096), 3), compression="gzip",
                                 compression_opts=4, shuffle=True, fletcher32=True, track_times=False)
@@ -520,7 +520,7 @@ class WindowWriter:
                       "files": [{"path": shard_name(i), "n_windows": int(len(c["window_id"]))}
                                 for i, c in enumerate(self._closed)]}
         self._closed = []
-        schema = _arrow_schema(list(self.info.protocols), sharded)
+        schema = arrow_schema(list(self.info.protocols), sharded)
         arrays = [pa.array(cols[fld.name].tolist() if fld.type == pa.string() else cols[fld.name],
                            type=fld.type, from_pandas=True) for fld in schema]
         table = pa.Table.from_arrays(arrays, schema=schema).replace_schema_metadata(

@@ -13,7 +13,7 @@ import numpy as np
 from matplotlib.axes import Axes
 
 from ofbe_data.core.figures import new_figure, save_png
-from ofbe_model.benchmark.ordering import _all_methods
+from ofbe_model.benchmark.ordering import all_methods
 
 # ----------------------------------------------------------------------------- figures
 
@@ -33,7 +33,7 @@ def _span_decades(values: Iterable[float | None]) -> float:
 def _colours(summary: dict[str, Any], method_order: Sequence[str] | None) -> dict[str, str]:
     """One colour per method, the same in every figure of a report (the oracle grey)."""
     oracle = summary.get("oracle")
-    others = [m for m in _all_methods(summary, method_order) if m != oracle]
+    others = [m for m in all_methods(summary, method_order) if m != oracle]
     colours = {m: _COLOURS[i % len(_COLOURS)] for i, m in enumerate(others)}
     if oracle is not None:
         colours[oracle] = _ORACLE_COLOUR
@@ -100,7 +100,7 @@ def rmse_figure(summary: dict[str, Any], path: str | Path, method_order: Sequenc
     Path
         The written file.
     """
-    methods = _all_methods(summary, method_order)
+    methods = all_methods(summary, method_order)
     means = [v["rmse_mean"] for ds in summary["datasets"].values() for v in ds["methods"].values()]
     log = _span_decades(means) > LOG_SPAN_DECADES and all(m is not None and m > 0 for m in means)
     fig, ax = new_figure(width_in=_figure_width(len(summary["datasets"]), len(methods)), height_in=4.2)
@@ -142,7 +142,7 @@ def max_error_figure(summary: dict[str, Any], path: str | Path,
     Path
         The written file.
     """
-    methods = _all_methods(summary, method_order)
+    methods = all_methods(summary, method_order)
     values = [x for ds in summary["datasets"].values() for v in ds["methods"].values()
               for x in [v["max_error_mean"], *v["max_error_folds"]]]
     log = _span_decades(values) > LOG_SPAN_DECADES and all(x is not None and x > 0 for x in values)
@@ -201,7 +201,7 @@ def t_figure(summary: dict[str, Any], path: str | Path, baseline: str,
     if baseline not in summary["baselines"]:
         raise ValueError(f"t_figure: expected one of the baselines {summary['baselines']}, "
                          f"found {baseline!r}")
-    methods = [m for m in _all_methods(summary, method_order) if m != baseline]
+    methods = [m for m in all_methods(summary, method_order) if m != baseline]
     fig, ax = new_figure(width_in=max(_figure_width(len(summary["datasets"]), len(methods)), 8.0),
                          height_in=4.6)
 

@@ -42,7 +42,7 @@ def ordered_methods(methods: Iterable[str], baselines: Sequence[str], oracle: st
     return given + [m for m in default if m not in given]
 
 
-def _all_methods(summary: dict[str, Any], method_order: Sequence[str] | None = None) -> list[str]:
+def all_methods(summary: dict[str, Any], method_order: Sequence[str] | None = None) -> list[str]:
     names: set[str] = set()
     for ds in summary["datasets"].values():
         names.update(ds["methods"])

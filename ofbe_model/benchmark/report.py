@@ -46,7 +46,7 @@ import pandas as pd
 
 from ofbe_data.core.atomic import atomic_directory, write_bytes_atomic
 from ofbe_model.benchmark.figures import max_error_figure, rmse_figure, t_figure
-from ofbe_model.benchmark.ordering import _all_methods, ordered_methods
+from ofbe_model.benchmark.ordering import all_methods, ordered_methods
 from ofbe_model.benchmark.paper import paper_comparison, paper_markdown
 from ofbe_model.benchmark.statistics import (
     AXES,
@@ -435,7 +435,7 @@ def report_markdown(summary: dict[str, Any], title: str, method_order: Sequence[
         f"# {title}",
         "",
         f"Protocol `{summary['protocol']}`: {len(summary['datasets'])} datasets, {n_signals} test signals, "
-        f"{len(_all_methods(summary))} methods. Errors are estimate − label, in m/s².",
+        f"{len(all_methods(summary))} methods. Errors are estimate − label, in m/s².",
         "",
         "## Table 3",
         "",

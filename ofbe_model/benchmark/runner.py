@@ -1,7 +1,7 @@
 """``ofbe-benchmark``: every estimator on every fold of a protocol, and the report.
 
 For each benchmark dataset (the gravity-aligned set pooled, each rotated device on its own;
-:mod:`ofbe_model.benchmark.evaluation`) and each fold of the protocol, every estimator is fitted on
+:mod:`ofbe_data.dataset.folds`) and each fold of the protocol, every estimator is fitted on
 the fold's training windows and predicts the fold's test signals (window 0 of each test
 recording). The predictions table (one row per method and test signal) feeds
 :mod:`ofbe_model.benchmark.report`: ``benchmark.json``, the paper's Table 3 as
@@ -26,9 +26,9 @@ import pandas as pd
 from tqdm import tqdm
 
 from ofbe_data.core.errors import ConfigError
+from ofbe_data.dataset.folds import Split, protocol_splits
 from ofbe_data.dataset.reader import load_dataset
 from ofbe_data.io.typedconfig import from_plain
-from ofbe_model.benchmark.evaluation import Split, protocol_splits
 from ofbe_model.estimators.base import Estimator, EstimatorError, make_estimator
 
 #: Meta columns an estimator never sees at prediction time (they are the labels).

@@ -18,6 +18,7 @@ from ofbe_data.core.cli import (
     command,
     fail,
     quiet_libraries,
+    with_examples,
 )
 from ofbe_data.core.errors import ConfigError, OfbeError
 from ofbe_data.io.typedconfig import read_section
@@ -42,9 +43,13 @@ def _parser() -> argparse.ArgumentParser:
                         "dataset, in the same order)")
     add_jobs(p, "worker processes")
     add_scheduler(p)
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--quiet", action="store_true", help="no progress, no summary")
     add_verbose(p)
-    return p
+    return with_examples(
+        p, "ofbe-benchmark processed/datasets/rotated --protocol grouped --out mine/benchmark "
+           "--models mine/models --truth raw/rotated/_truth",
+        "ofbe-benchmark processed/datasets/rotated --protocol grouped --out mine/benchmark "
+        "--methods level-mean gravity-prior")
 
 
 def _run_options(args: argparse.Namespace) -> dict[str, object]:

@@ -24,8 +24,9 @@ files in imucal's own layout; see :mod:`ofbe_data.calibration.store` and
 :func:`ofbe_data.find_calibration`). Nothing is written unless every file can be.
 
 Adding a format is one entry in :data:`FORMATS`: a :class:`Format` whose handler turns the
-parsed arguments into :class:`ExportFile` objects (its options, if any, go in
-:func:`build_parser`); writing, ``--force`` and ``--store`` are shared. The model formats
+parsed arguments into :class:`~ofbe_data.calibration.output.ExportFile` objects, with its own
+options and examples (``ofbe-export FORMAT --help`` shows them); writing, ``--force`` and
+``--store`` are shared (:mod:`ofbe_data.calibration.output`). The model formats
 (``tflite``, ``c-header``) are entries of the same kind whose handlers read a model as SOURCE.
 Exit status: 0 written, 1 bad input data, 2 usage (``ofbe_data.core.cli``).
 """
@@ -35,7 +36,6 @@ from __future__ import annotations
 import argparse
 import os
 import re
-import shutil
 import sys
 import tempfile
 from collections.abc import Callable, Sequence
@@ -48,62 +48,30 @@ import numpy as np
 from ofbe_data import __version__
 from ofbe_data.calibration import formats as fmt
 from ofbe_data.calibration.noise import RawFiles, attach_raw_times, gyro_noise_of, noise_of
+from ofbe_data.calibration.output import (
+    ExportFile,
+    ExportUsageError,
+    write_outputs,
+    written_time,
+)
 from ofbe_data.calibration.results import CalibrationResult, Collected, Segment, load_results
 from ofbe_data.calibration.ros_names import ros_node_problem
-from ofbe_data.calibration.store import CalibrationStoreError, store_path
-from ofbe_data.core.atomic import atomic_directory, write_bytes_atomic
-from ofbe_data.core.cli import EXIT_DATA, EXIT_OK, EXIT_USAGE, command, fail, io_failure
-from ofbe_data.core.errors import OfbeError, OutputExistsError
+from ofbe_data.core.cli import EXIT_DATA, EXIT_OK, EXIT_USAGE, command, fail, io_failure, with_examples
+from ofbe_data.core.errors import OfbeError
 from ofbe_data.io.recording import TEMPERATURE
 
 PROG = "ofbe-export"
-FILE_SUFFIXES = frozenset({".json", ".yaml", ".yml", ".csv", ".h", ".tflite"})
-"""Suffixes that make ``--out`` a file name (an error when there are several results)."""
-
-
-class ExportUsageError(OfbeError):
-    """The command line asks for something the format cannot do (exit status 2)."""
-
-
-@dataclass(frozen=True)
-class ExportFile:
-    """One file an export writes.
-
-    Attributes
-    ----------
-    name
-        Its name inside ``--out`` when that is a folder.
-    data
-        Its bytes.
-    device, when, store_format
-        Where ``--store`` files it (``store_format`` a key of
-        :data:`ofbe_data.calibration.formats.FORMAT_EXTENSIONS`); None: not filed.
-    out
-        Whether it goes to ``--out`` (False: a file for ``--store`` only).
-    """
-
-    name: str
-    data: bytes
-    device: str | None = None
-    when: datetime | None = None
-    store_format: str | None = None
-    out: bool = True
-
-
 @dataclass(frozen=True)
 class Format:
-    """An export format: what it makes (``help``) and how (``handler``)."""
+    """An export format: what it makes (``help``), how (``handler``), its own options
+    (``options``, added to its ``ofbe-export FORMAT`` parser) and command lines that use it
+    (``examples``, shown by ``ofbe-export FORMAT --help``)."""
 
     handler: Callable[[argparse.Namespace], list[ExportFile]]
     help: str
-
-
-def written_time() -> datetime:
-    """Now, UTC, whole seconds (``SOURCE_DATE_EPOCH`` when set, for reproducible files)."""
-    epoch = os.environ.get("SOURCE_DATE_EPOCH")
-    if epoch and epoch.strip().isdigit():
-        return datetime.fromtimestamp(int(epoch), tz=UTC)
-    return datetime.now(UTC).replace(microsecond=0)
+    options: Callable[[argparse.ArgumentParser], None] | None = None
+    examples: tuple[str, ...] = ()
+    reads_raw: bool = True
 
 
 # ----------------------------------------------------------------------------- calibration formats
@@ -314,16 +282,16 @@ def _training_windows(args: argparse.Namespace) -> tuple[np.ndarray, str]:
         from ofbe_model.deploy.final import ModelCardError, card_dataset, card_selected_devices
 
         try:
-            args.dataset, warning = card_dataset(args.source)
+            args.dataset, _ = card_dataset(args.source)  # its hash: check_card_dataset below
         except ModelCardError as exc:
             raise ExportUsageError(f"{args.format} needs --dataset DIR, the dataset the model was trained on "
                                    f"(its training windows are the int8 representative set): {exc}") from None
-        if warning:
-            print(f"{PROG}: warning: {warning}", file=sys.stderr)
         what = " (the model card's training data)"
         selected = card_selected_devices(args.source) if args.device is None else None
     from ofbe_data import load_dataset
+    from ofbe_model.deploy.tflite import check_card_dataset
 
+    check_card_dataset(args.source, args.dataset)  # a card that names other training data: refused
     data = load_dataset(args.dataset)
     keep = np.ones(len(data.meta), dtype=bool)
     what = f"{args.dataset}{what}"
@@ -368,135 +336,70 @@ def _c_header(args: argparse.Namespace) -> list[ExportFile]:
         return [ExportFile(path.name, path.read_bytes())]
 
 
+def _ros_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--frame-id", default=fmt.DEFAULT_FRAME_ID, help="the frame_id written")
+    p.add_argument("--ros-node", default=fmt.ROS_NODE, type=_ros_node,
+                   help="the node the parameters are for (the default, /**, is every node that loads the "
+                        "file)")
+
+
+def _ggir_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--g-convention", choices=fmt.GGIR_CONVENTIONS, default="unit-sphere",
+                   help="unit-sphere: GGIR's (resting readings of norm 1 g); local: ofbe's (norm g_local/g0)")
+    p.add_argument("--ggir-data", action="store_true",
+                   help="also rebuild the raw files (from --raw) as clean CSV that GGIR's csv reader reads "
+                        "whole, in OUT/ggir-data/ under the names of the filename column, with the rmc.* "
+                        "settings in OUT/ggir-data.README.txt")
+
+
+def _kalibr_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--rostopic", default=fmt.DEFAULT_ROSTOPIC, help="the rostopic written")
+    p.add_argument("--gyro-noise-density", type=_positive, metavar="RAD_S_SQRT_HZ",
+                   help="gyroscope white-noise density, rad/s/sqrt(Hz) (datasheet); when left out, measured "
+                        "from the recordings' gyroscope columns")
+    p.add_argument("--gyro-random-walk", type=_positive, metavar="RAD_S2_SQRT_HZ",
+                   help="gyroscope bias random walk, rad/s^2/sqrt(Hz); when left out, measured from the "
+                        "gyroscope columns (or their flagged upper bound)")
+
+
+def _tflite_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--dataset", type=Path, help="the dataset the model was trained on (when left out: the "
+                                                "one model_card.json beside SOURCE names)")
+    p.add_argument("--protocol", help="with --fold, only that fold's training windows")
+    p.add_argument("--fold", type=int, help="the fold of --protocol the model was trained for")
+    p.add_argument("--device", help="only this device's windows (a per-device model)")
+
+
 FORMATS: dict[str, Format] = {
     "imucal": Format(_imucal, "imucal Ferraris calibration JSON (accelerometer from ofbe, gyroscope "
-                              "identity)"),
+                              "identity)",
+                     examples=("ofbe-export imucal mine/labels/lab --out mine/cal/",
+                               "ofbe-export imucal mine/labels/lab --store mine/cal-store")),
     "kalibr": Format(_kalibr, "Kalibr imu.yaml: accelerometer and gyroscope noise density and random walk "
-                              "from the Allan deviation (gyroscope from its columns or flags); needs --raw"),
-    "ros": Format(_ros, "YAML: bias to subtract (m/s²) and linear_acceleration_covariance"),
-    "ggir": Format(_ggir, "GGIR backup.cal.coef CSV, one per run: scale.*, offset.* (g, GGIR's sign)"),
-    "json": Format(_json, "ofbe-calibration/1 JSON: bias, std, kind, method, source, time, version"),
+                              "from the Allan deviation (gyroscope from its columns or flags); needs --raw",
+                     _kalibr_options,
+                     ("ofbe-export kalibr processed/labels/rotated --raw raw/rotated --out mine/kalibr/",)),
+    "ros": Format(_ros, "YAML: bias to subtract (m/s²) and linear_acceleration_covariance", _ros_options,
+                  ("ofbe-export ros mine/labels/lab --out mine/ros/ --frame-id imu_link",)),
+    "ggir": Format(_ggir, "GGIR backup.cal.coef CSV, one per run: scale.*, offset.* (g, GGIR's sign)",
+                   _ggir_options,
+                   ("ofbe-export ggir mine/labels/lab --out mine/ggir/",
+                    "ofbe-export ggir mine/labels/lab --raw mine/raw/lab --ggir-data --out mine/ggir/")),
+    "json": Format(_json, "ofbe-calibration/1 JSON: bias, std, kind, method, source, time, version",
+                   examples=("ofbe-export json mine/labels/lab --out mine/json/",
+                             "ofbe-export json predictions.json --out mine/json/   # ofbe-predict's output")),
     "tflite": Format(_tflite, "OFBENet (SOURCE: a .keras) as float32 and int8 TensorFlow Lite with a JSON "
-                              "sidecar of the scaling; --dataset (default: the model card's)"),
+                              "sidecar of the scaling; --dataset (default: the model card's)",
+                     _tflite_options,
+                     ("ofbe-export tflite models/rotated/sparkfun-1/final.keras --out mine/fw/",),
+                     reads_raw=False),
     "c-header": Format(_c_header, "the gravity-prior (SOURCE: its .json) as a self-contained C header with a "
-                                  "reference C function"),
+                                  "reference C function",
+                       examples=("ofbe-export c-header models/rotated/sparkfun-1/gravity-prior.json "
+                                 "--out mine/fw/",),
+                       reads_raw=False),
 }
 """FORMAT → how to export it. A new format is one more entry here."""
-
-
-# ----------------------------------------------------------------------------- writing
-
-
-def _out_targets(files: Sequence[ExportFile], out: Path, force: bool, folder: bool = False
-                 ) -> tuple[list[tuple[Path, bytes]], bool]:
-    """(path, bytes) to write for ``--out`` and whether ``out`` is a new folder to build whole
-    (``folder``: the user wrote ``--out`` with a trailing slash, a folder even for one file)."""
-    names = [f.name for f in files]
-    if len(set(names)) != len(names):
-        raise CalibrationStoreError(f"{out}: two files of this export share a name: "
-                                    f"{sorted({n for n in names if names.count(n) > 1})}")
-    if out.is_dir():
-        targets = [(out / f.name, f.data) for f in files]
-    elif folder and not out.exists():
-        return [(out / f.name, f.data) for f in files], True
-    elif len(files) == 1:
-        targets = [(out, files[0].data)]
-    else:
-        if out.exists() or out.suffix in FILE_SUFFIXES:
-            raise ExportUsageError(f"{out}: expected a folder for {len(files)} files "
-                                   f"({', '.join(names[:3])}{', …' if len(names) > 3 else ''}), found "
-                                   f"{'an existing file' if out.exists() else 'a file name'}; give a folder")
-        return [(out / f.name, f.data) for f in files], True
-    if not force:
-        for path, _ in targets:
-            if path.exists():
-                raise OutputExistsError(path)
-    return targets, False
-
-
-def _store_targets(files: Sequence[ExportFile], store: Path, force: bool) -> list[tuple[Path, bytes]]:
-    targets: dict[Path, ExportFile] = {}
-    for f in files:
-        if f.device is None or f.store_format is None:
-            continue
-        if f.when is None:
-            raise CalibrationStoreError(f"{f.name}: expected a recording time to file it in {store}, "
-                                        "found none")
-        path = store_path(store, f.device, f.when, f.store_format)
-        if path in targets:
-            when = ("minute (imucal's own store names keep minutes only)" if f.store_format == "imucal"
-                    else "time")
-            raise CalibrationStoreError(
-                f"{path}: {targets[path].name} and {f.name} would be filed under the same device and {when}; "
-                "pass --raw so that each is filed at its own recording's start time")
-        if path.exists() and not force:
-            raise OutputExistsError(path)
-        targets[path] = f
-    return [(p, f.data) for p, f in targets.items()]
-
-
-def write_outputs(files: Sequence[ExportFile], out: Path | None, store: Path | None, force: bool,
-                  out_is_folder: bool = False) -> list[Path]:
-    """Write every file to ``--out`` and ``--store``; check every target before writing any.
-
-    ``out_is_folder``: ``--out`` names a folder even for one file (written with a trailing slash).
-    """
-    if not files:
-        raise CalibrationStoreError("nothing to export")
-    to_out = [f for f in files if f.out]
-    out_targets, new_folder = (([], False) if out is None or not to_out
-                               else _out_targets(to_out, out, force, out_is_folder))
-    store_targets = _store_targets(files, store, force) if store is not None else []
-    for path, _ in ([] if new_folder else out_targets) + store_targets:
-        _check_folder_for(path)
-    written: list[Path] = []
-    made: list[Path] = []  # files and folders this call created, removed again if a later write fails
-    try:
-        if new_folder and out is not None:
-            with atomic_directory(out) as tmp:
-                for path, data in out_targets:
-                    target = tmp / path.relative_to(out)
-                    target.parent.mkdir(parents=True, exist_ok=True)
-                    target.write_bytes(data)
-            written.append(out)
-            made.append(out)
-        else:
-            for path, data in out_targets:
-                made += _new_folders(path.parent) + ([] if path.exists() else [path])
-                path.parent.mkdir(parents=True, exist_ok=True)
-                write_bytes_atomic(path, data)
-                written.append(path)
-        for path, data in store_targets:
-            made += _new_folders(path.parent) + ([] if path.exists() else [path])
-            path.parent.mkdir(parents=True, exist_ok=True)
-            write_bytes_atomic(path, data)
-            written.append(path)
-    except BaseException:
-        for path in reversed(made):  # newest first: files before the folders that hold them
-            if path.is_dir() and not path.is_symlink():
-                shutil.rmtree(path, ignore_errors=True)
-            else:
-                path.unlink(missing_ok=True)
-        raise
-    return written
-
-
-def _new_folders(folder: Path) -> list[Path]:
-    """The folders ``folder.mkdir(parents=True)`` would create, outermost first."""
-    missing = []
-    while not folder.exists() and folder != folder.parent:
-        missing.append(folder)
-        folder = folder.parent
-    return missing[::-1]
-
-
-def _check_folder_for(path: Path) -> None:
-    """Refuse, before anything is written, a target whose folder cannot be made: the nearest
-    existing ancestor of its folder must be a folder (not a file)."""
-    missing = _new_folders(path.parent)
-    folder = missing[0].parent if missing else path.parent  # the nearest that exists
-    if not folder.is_dir():
-        raise CalibrationStoreError(f"{path}: expected {folder} to be a folder to write into, found a file")
 
 
 # ----------------------------------------------------------------------------- command
@@ -512,14 +415,7 @@ def _positive(text: str) -> float:
     return value
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The command-line parser of ``ofbe-export``."""
-    p = argparse.ArgumentParser(
-        prog=PROG, formatter_class=argparse.RawDescriptionHelpFormatter,
-        description="Calibration results (labels or ofbe-predict estimates) in the files other tools\n"
-                    "load, with their sign and unit conventions converted (docs/exports.md).",
-        epilog="formats:\n" + "\n".join(f"  {k:<9} {v.help}" for k, v in FORMATS.items()))
-    p.add_argument("format", metavar="FORMAT", choices=sorted(FORMATS), help=", ".join(FORMATS))
+def _common_options(p: argparse.ArgumentParser, reads_raw: bool) -> None:
     p.add_argument("source", metavar="SOURCE", type=Path,
                    help="labels folder (processed/labels/<campaign>), a <session>.parquet, or "
                         "ofbe-predict's JSON; for tflite a .keras model, for c-header a gravity-prior .json")
@@ -529,33 +425,41 @@ def build_parser() -> argparse.ArgumentParser:
                    help="also file each result as STORE/<device>/<device>_<YYYYmmddTHHMMSS[.ffffff]>."
                         "<ending> (imucal: STORE/<device>/<sensor_id>_<YYYY-mm-dd_HH-MM>.json, imucal's own "
                         "layout)")
-    p.add_argument("--raw", type=Path,
-                   help="the campaign's raw folder: recording start times, and the segments kalibr analyses")
-    p.add_argument("--frame-id", default=fmt.DEFAULT_FRAME_ID, help="ros: frame_id (default %(default)s)")
-    p.add_argument("--ros-node", default=fmt.ROS_NODE, type=_ros_node,
-                   help="ros: the node the parameters are for (default %(default)s: every node that loads "
-                        "the file)")
-    p.add_argument("--g-convention", choices=fmt.GGIR_CONVENTIONS, default="unit-sphere",
-                   help="ggir: GGIR's unit sphere (default: resting readings of norm 1 g) or ofbe's local "
-                        "convention (norm g_local/g0)")
-    p.add_argument("--ggir-data", action="store_true",
-                   help="ggir: also rebuild the raw files (from --raw) as clean CSV that GGIR's csv reader "
-                        "reads whole, in OUT/ggir-data/ under the names of the filename column, with the "
-                        "rmc.* settings in OUT/ggir-data.README.txt")
-    p.add_argument("--rostopic", default=fmt.DEFAULT_ROSTOPIC, help="kalibr: rostopic (default %(default)s)")
-    p.add_argument("--gyro-noise-density", type=_positive, metavar="RAD_S_SQRT_HZ",
-                   help="kalibr: gyroscope white-noise density, rad/s/sqrt(Hz) (datasheet); default: measured"
-                        " from the recordings' gyroscope columns")
-    p.add_argument("--gyro-random-walk", type=_positive, metavar="RAD_S2_SQRT_HZ",
-                   help="kalibr: gyroscope bias random walk, rad/s^2/sqrt(Hz); default: measured from the "
-                        "gyroscope columns (or their flagged upper bound)")
-    p.add_argument("--dataset", type=Path, help="tflite: the dataset the model was trained on (default: the "
-                                                "one model_card.json beside SOURCE names)")
-    p.add_argument("--protocol", help="tflite: with --fold, only that fold's training windows")
-    p.add_argument("--fold", type=int, help="tflite: the fold of --protocol the model was trained for")
-    p.add_argument("--device", help="tflite: only this device's windows (a per-device model)")
+    if reads_raw:
+        p.add_argument("--raw", type=Path,
+                       help="the campaign's raw folder: recording start times, and the segments kalibr "
+                            "analyses")
     p.add_argument("--force", action="store_true", help="replace existing output files")
-    return p
+
+
+def _every_default() -> dict[str, object]:
+    """Every format's options at their defaults, so that each handler sees every attribute."""
+    scratch = argparse.ArgumentParser(add_help=False)
+    _common_options(scratch, True)
+    for f in FORMATS.values():
+        if f.options is not None:
+            f.options(scratch)
+    return {a.dest: a.default for a in scratch._actions if a.dest != "source"}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The command-line parser of ``ofbe-export``: one subcommand per format of :data:`FORMATS`,
+    each with the shared options and its own (``ofbe-export FORMAT --help``)."""
+    p = argparse.ArgumentParser(
+        prog=PROG,
+        description="Calibration results (labels or ofbe-predict estimates) in the files other tools load, "
+                    "with their sign and unit conventions converted (docs/exports.md). "
+                    "'ofbe-export FORMAT --help' lists a format's options.")
+    sub = p.add_subparsers(dest="format", required=True, metavar="FORMAT", help=", ".join(FORMATS))
+    defaults = _every_default()
+    for name, f in FORMATS.items():
+        s = sub.add_parser(name, help=f.help, description=f.help)
+        _common_options(s, f.reads_raw)
+        if f.options is not None:
+            f.options(s)
+        s.set_defaults(**defaults)
+        with_examples(s, *(f.examples or (f"ofbe-export {name} SOURCE --out DIR/",)))
+    return with_examples(p, *(f.examples[0] for f in FORMATS.values() if f.examples))
 
 
 @command(PROG)

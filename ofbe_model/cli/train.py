@@ -21,6 +21,7 @@ from ofbe_data.core.cli import (
     command,
     fail,
     quiet_libraries,
+    with_examples,
 )
 from ofbe_data.core.errors import ConfigError, OfbeError
 from ofbe_data.dataset.store import fold_column
@@ -47,7 +48,9 @@ def _parser() -> argparse.ArgumentParser:
     add_scheduler(p)
     p.add_argument("--quiet", action="store_true", help="no progress bar and no summary line")
     add_verbose(p)
-    return p
+    return with_examples(
+        p, "ofbe-train processed/datasets/rotated --protocol grouped --out mine/models --jobs 2",
+        "ofbe-train processed/datasets/rotated --protocol grouped --folds 0 --seeds 1 --out mine/models")
 
 
 @command(PROG)
@@ -62,7 +65,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     # TensorFlow is imported only now: --help answers at once, and its start-up lines stay quiet
     quiet_libraries(args.verbose)
-    from ofbe_model.ofbenet.training import _Usage, read_params, read_seed_count, train_many
+    from ofbe_model.ofbenet.training import TrainingUsageError, read_params, read_seed_count, train_many
 
     try:
         params = read_params(args.params, args.max_epochs)
@@ -81,7 +84,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         written = train_many(datasets, args.protocol, args.out, params, args.folds, progress=not args.quiet,
                              seeds=seeds, jobs=args.jobs, scheduler=args.scheduler)
-    except _Usage as exc:
+    except TrainingUsageError as exc:
         return fail(PROG, str(exc), 2)
     except (OfbeError, OSError) as exc:
         return fail(PROG, str(exc), 1)

@@ -4,7 +4,7 @@ windows, each with a model card whose accuracy figures are measured on the files
 The cross-validation folds of ``ofbe-train`` measure accuracy; they are not what a user runs
 on new recordings (five fold models, each blind to a fifth of the data). This module fits
 the two estimators a user deploys on every window of each *benchmark dataset*, as the
-benchmark evaluates it (:func:`ofbe_model.benchmark.evaluation.benchmark_datasets`): the
+benchmark evaluates it (:func:`ofbe_data.dataset.folds.benchmark_datasets`): the
 gravity-aligned set pooled over its devices, each rotated device on its own. A model trained on
 several rotated boards pooled cannot tell them apart (their tangential biases differ and are
 invisible in a window), so it would be far worse than the per-device fold models it is quoted
@@ -55,8 +55,8 @@ from ofbe_data import __version__
 from ofbe_data.core.atomic import write_bytes_atomic
 from ofbe_data.core.errors import OfbeError
 from ofbe_data.core.parallel import map_progress
+from ofbe_data.dataset.folds import benchmark_datasets
 from ofbe_data.dataset.reader import LoadedDataset, load_dataset
-from ofbe_model.benchmark.evaluation import benchmark_datasets
 from ofbe_model.estimators.priors import GravityPrior
 from ofbe_model.ofbenet.params import WORKER_ENV, OFBENetParams
 
@@ -451,7 +451,7 @@ def train_finals(datasets: Sequence[str | Path], out: str | Path, params: OFBENe
     ----------
     datasets
         Dataset folders (``processed/datasets/<name>``). Each gives its benchmark datasets
-        (:func:`~ofbe_model.benchmark.evaluation.benchmark_datasets`): itself (pooled kinds) or
+        (:func:`~ofbe_data.dataset.folds.benchmark_datasets`): itself (pooled kinds) or
         one per device (``<name>/<device>``, with a :data:`SET_NAME` index in ``<out>/<name>/``).
     out
         Models folder; each benchmark dataset's files go to ``<out>/<benchmark dataset>/``.

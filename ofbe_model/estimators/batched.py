@@ -10,7 +10,7 @@ each step is a few array operations over the batch:
 - :func:`won_iterations` (:func:`won2009_batch`) is Won & Golnaraghi's iteration, each step
   ``lstsq``'s least squares solution, the sums over the samples taken from the window's
   centred moments once (no pass over the samples per iteration);
-- :class:`_TRF` (:func:`ls_trf_batch`: ``as-written``, ``min-norm``) is scipy's Trust
+- :class:`BatchedTRF` (:func:`ls_trf_batch`: ``as-written``, ``min-norm``) is scipy's Trust
   Region Reflective algorithm as scipy runs it for an unbounded problem
   (``trf_no_bounds``, exact trust-region solver, ``x_scale = 1``): the same outer and inner
   iterations, radius updates and termination tests, one residual evaluation per window and
@@ -47,17 +47,17 @@ EPS = float(np.finfo(np.float64).eps)
 BATCH_WINDOWS = 64
 """Windows solved together (memory: about 10 × BATCH_WINDOWS × T × 3 doubles)."""
 
-_FTOL = _XTOL = _GTOL = 1e-8  # scipy.optimize.least_squares' defaults
+FTOL = XTOL = GTOL = 1e-8  # scipy.optimize.least_squares' defaults
 _TR_RTOL, _TR_MAX_ITER = 0.01, 10  # scipy's solve_lsq_trust_region defaults
 
 
-def _batches(n: int, size: int | None = None) -> list[slice]:
+def window_batches(n: int, size: int | None = None) -> list[slice]:
     """Slices of at most ``size`` (None: BATCH_WINDOWS) of n windows."""
     step = BATCH_WINDOWS if size is None else size
     return [slice(i, min(i + step, n)) for i in range(0, n, step)]
 
 
-def _component_major(windows: np.ndarray, rows: slice) -> np.ndarray:
+def component_major(windows: np.ndarray, rows: slice) -> np.ndarray:
     """(n, 3, T) float64 copy of (N, T, 3) windows[rows]: each component contiguous."""
     return np.ascontiguousarray(np.asarray(windows[rows], dtype=np.float64).transpose(0, 2, 1))
 
@@ -66,8 +66,8 @@ def _map_batches(windows: np.ndarray, g: np.ndarray, solve: Callable[[np.ndarray
                  ) -> np.ndarray:
     n = int(np.asarray(windows).shape[0])
     out = np.empty((n, 3))
-    for rows in _batches(n):
-        out[rows] = solve(_component_major(windows, rows), np.asarray(g[rows], dtype=np.float64))
+    for rows in window_batches(n):
+        out[rows] = solve(component_major(windows, rows), np.asarray(g[rows], dtype=np.float64))
     return out
 
 
@@ -221,7 +221,7 @@ def ls_trf_batch(windows: np.ndarray, g: np.ndarray, *, ridge_weight: float = 0.
     start = np.zeros(3) if x0 is None else np.asarray(x0, dtype=np.float64).reshape(3)
     limit = 300 if max_nfev is None else int(max_nfev)
     return _map_batches(windows, np.asarray(g, dtype=np.float64),
-                        lambda f, gb: _TRF(f, gb, float(ridge_weight), start, limit).run())
+                        lambda f, gb: BatchedTRF(f, gb, float(ridge_weight), start, limit).run())
 
 
 def _basis(h: np.ndarray) -> np.ndarray:
@@ -252,7 +252,7 @@ def _cholesky3(a: np.ndarray) -> np.ndarray:
     return r
 
 
-def _forward3(r: np.ndarray, b: np.ndarray) -> np.ndarray:
+def forward3(r: np.ndarray, b: np.ndarray) -> np.ndarray:
     """y with Rᵀ·y = b for upper-triangular (n, 3, 3) R (a zero pivot gives 0 there)."""
     y = np.zeros_like(b)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -263,7 +263,7 @@ def _forward3(r: np.ndarray, b: np.ndarray) -> np.ndarray:
     return y
 
 
-class _TRF:
+class BatchedTRF:
     """scipy's ``trf_no_bounds`` (``tr_solver="exact"``, ``x_scale=1``, linear loss) for a
     batch of problems min_b Σ_i (‖f_i − b‖ − g)² [+ w²‖b − x0‖²], one function evaluation
     per window and round.
@@ -321,7 +321,7 @@ class _TRF:
         # J·Q₀ = Q·R, so Qᵀf = R⁻ᵀ·Q₀ᵀJᵀf; with a ridge the Jacobian [J; w·I] is, rotated,
         # blockdiag(Q, I)·[R; w·Q₀]. The SVD of that 3×3 (6×3) matrix, U·S·Vᵀ, gives J's
         # singular values, its right singular vectors Q₀·V and scipy's Uᵀf as Uᵀ·[Qᵀf; w·Δx]
-        qf = _forward3(r, g_rot)
+        qf = forward3(r, g_rot)
         if self.w2:
             dx = x - self.start
             m = np.concatenate([r, self.w * q0], axis=1)
@@ -450,7 +450,7 @@ class _TRF:
             t = np.flatnonzero(top & ~done)
             if t.size:
                 g_norm = np.abs(self.grad[t]).max(axis=1)
-                stop = (g_norm < _GTOL) | (self.nfev[t] >= self.max_nfev)
+                stop = (g_norm < GTOL) | (self.nfev[t] >= self.max_nfev)
                 done[t[stop]] = True
             idx = np.flatnonzero(~done)
             if idx.size == 0:
@@ -474,8 +474,8 @@ class _TRF:
             delta_new = np.where(ratio < 0.25, 0.25 * step_norm,
                                  np.where((ratio > 0.75) & (step_norm > 0.95 * delta), 2.0 * delta, delta))
             x_norm = np.sqrt(np.einsum("nk,nk->n", self.x[idx], self.x[idx]))
-            ftol_ok = (actual < _FTOL * self.cost[idx]) & (ratio > 0.25)
-            xtol_ok = step_norm < _XTOL * (_XTOL + x_norm)
+            ftol_ok = (actual < FTOL * self.cost[idx]) & (ratio > 0.25)
+            xtol_ok = step_norm < XTOL * (XTOL + x_norm)
             terminated = ~bad & (ftol_ok | xtol_ok)
             keep_going = ~bad & ~terminated
             with np.errstate(divide="ignore", invalid="ignore"):

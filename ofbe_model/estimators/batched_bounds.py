@@ -4,13 +4,13 @@ The ``bounded`` ``ls-trf`` variant solves min_b Σ_i (‖f_i − b‖ − g)² i
 at a time through ``scipy.optimize.least_squares``. :class:`_TRFBounds` runs scipy's
 ``trf_bounds`` (``tr_solver="exact"``, which scipy picks for a dense Jacobian, ``x_scale =
 1``, linear loss) for a batch of windows in lockstep, as :class:`~ofbe_model.estimators.
-batched._TRF` does ``trf_no_bounds``: every window its own state and stopping mask, one
+batched.BatchedTRF` does ``trf_no_bounds``: every window its own state and stopping mask, one
 residual evaluation per window and round, the same outer and inner iterations as scipy:
 
 - the Coleman–Li scaling v (distance to the bound the anti-gradient points at, else 1),
   d = √v, C = diag(g·∂v) and the "hat" problem J_h = J·diag(d), g_h = d·g;
 - the exact trust-region solve on the SVD of [J_h; √C], formed from the 3×3 factor R of
-  J (J·Q₀ = Q·R, see :class:`~ofbe_model.estimators.batched._TRF`) as the SVD of the 6×3
+  J (J·Q₀ = Q·R, see :class:`~ofbe_model.estimators.batched.BatchedTRF`) as the SVD of the 6×3
   matrix [R·Q₀ᵀ·diag(d); √C]: the same singular values, right singular vectors and Uᵀf;
 - ``select_step``: the trust-region step when it stays inside the box, else the best of
   the step stopped short of the bound (θ = max(0.995, 1 − ‖v·g‖∞)), the reflected step and
@@ -30,13 +30,13 @@ from __future__ import annotations
 import numpy as np
 
 from ofbe_model.estimators.batched import (
-    _FTOL,
-    _GTOL,
-    _TRF,
-    _XTOL,
-    _batches,
-    _component_major,
-    _forward3,
+    FTOL,
+    GTOL,
+    XTOL,
+    BatchedTRF,
+    component_major,
+    forward3,
+    window_batches,
 )
 
 BATCH_WINDOWS = 128
@@ -82,8 +82,8 @@ def ls_trf_bounded_batch(windows: np.ndarray, g: np.ndarray, lower: np.ndarray, 
     gg = np.asarray(g, dtype=np.float64)
     n = int(np.asarray(windows).shape[0])
     b, nfev, ok = np.empty((n, 3)), np.empty(n, dtype=np.int64), np.empty(n, dtype=bool)
-    for rows in _batches(n, BATCH_WINDOWS):
-        trf = _TRFBounds(_component_major(windows, rows), gg[rows], lo, hi, start, limit)
+    for rows in window_batches(n, BATCH_WINDOWS):
+        trf = _TRFBounds(component_major(windows, rows), gg[rows], lo, hi, start, limit)
         b[rows] = trf.run()
         nfev[rows], ok[rows] = trf.nfev, trf.ok
     return b, nfev, ok
@@ -197,10 +197,10 @@ def _line(jh: np.ndarray, diag: np.ndarray, g_h: np.ndarray, s_h: np.ndarray,
     return a, b, c
 
 
-class _TRFBounds(_TRF):
+class _TRFBounds(BatchedTRF):
     """scipy's ``trf_bounds`` for a batch of problems min_b Σ_i (‖f_i − b‖ − g)², lb ≤ b ≤ ub.
 
-    Besides :class:`~ofbe_model.estimators.batched._TRF`'s state (x, cost, gradient, R, Q₀,
+    Besides :class:`~ofbe_model.estimators.batched.BatchedTRF`'s state (x, cost, gradient, R, Q₀,
     radius Δ, α, nfev), each window keeps what scipy computes at the top of an outer
     iteration: d, C = diag_h, g_h, θ and the SVD (s, V, Uᵀf) of [J_h; √C].
     """
@@ -228,7 +228,7 @@ class _TRFBounds(_TRF):
         x, grad = self.x[idx], self.grad[idx]
         v, dv = _cl_scaling(x, grad, self.lb, self.ub)
         g_norm = np.abs(grad * v).max(axis=1)
-        stop = (g_norm < _GTOL) | (self.nfev[idx] >= self.max_nfev)
+        stop = (g_norm < GTOL) | (self.nfev[idx] >= self.max_nfev)
         go, v, dv, grad, g_norm = idx[~stop], v[~stop], dv[~stop], grad[~stop], g_norm[~stop]
         d = v**0.5
         diag_h = grad * dv
@@ -237,7 +237,7 @@ class _TRFBounds(_TRF):
         top = np.einsum("nij,nkj->nik", r, q0) * d[:, None, :]
         m = np.concatenate([top, np.einsum("nk,kl->nkl", diag_h**0.5, np.eye(3))], axis=1)
         u_m, sv, vt = np.linalg.svd(m, full_matrices=False)
-        qf = _forward3(r, np.einsum("nki,nk->ni", q0, grad))  # Qᵀf
+        qf = forward3(r, np.einsum("nki,nk->ni", q0, grad))  # Qᵀf
         self.d[go], self.diag_h[go], self.g_h[go], self.jh[go] = d, diag_h, d * grad, top
         self.s[go], self.vec[go] = sv, vt.transpose(0, 2, 1)
         self.uf[go] = np.einsum("nkj,nk->nj", u_m[:, :3], qf)
@@ -326,8 +326,8 @@ class _TRFBounds(_TRF):
                                  np.where((predicted == 0) & (actual == 0), 1.0, 0.0))
             delta_new = np.where(ratio < 0.25, 0.25 * step_h_norm,
                                  np.where((ratio > 0.75) & (step_h_norm > 0.95 * delta), 2.0 * delta, delta))
-            ftol_ok = (actual < _FTOL * self.cost[idx]) & (ratio > 0.25)
-            xtol_ok = _norm(step) < _XTOL * (_XTOL + _norm(self.x[idx]))
+            ftol_ok = (actual < FTOL * self.cost[idx]) & (ratio > 0.25)
+            xtol_ok = _norm(step) < XTOL * (XTOL + _norm(self.x[idx]))
             terminated = ~bad & (ftol_ok | xtol_ok)
             keep_going = ~bad & ~terminated
             with np.errstate(divide="ignore", invalid="ignore"):

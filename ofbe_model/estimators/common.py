@@ -99,13 +99,13 @@ def nearest_axes(means: np.ndarray) -> np.ndarray:
     return out
 
 
-def _unit_rows(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def unit_rows(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Row-wise unit vectors and norms of (N, 3) vectors."""
     n = np.linalg.norm(v, axis=1)
     return v / n[:, None], n
 
 
-def _g_local(meta: pd.DataFrame) -> np.ndarray:
+def g_local_column(meta: pd.DataFrame) -> np.ndarray:
     """``meta["g_local"]`` as float64, checked finite and positive, m/s²."""
     try:
         g = meta["g_local"].to_numpy(dtype=np.float64)
@@ -117,12 +117,12 @@ def _g_local(meta: pd.DataFrame) -> np.ndarray:
     return g
 
 
-def _devices(meta: pd.DataFrame) -> np.ndarray:
+def device_column(meta: pd.DataFrame) -> np.ndarray:
     """``meta["device"]`` as an array of str."""
     return meta["device"].astype(str).to_numpy()
 
 
-def _as_float_tuple(value: Any, n: int, what: str) -> np.ndarray:
+def as_float_tuple(value: Any, n: int, what: str) -> np.ndarray:
     """A parameter that must be n finite numbers, as a float64 array."""
     try:
         arr = np.asarray(value, dtype=np.float64).reshape(-1)
@@ -133,17 +133,17 @@ def _as_float_tuple(value: Any, n: int, what: str) -> np.ndarray:
     return arr
 
 
-def _is_int(value: Any) -> bool:
+def is_int(value: Any) -> bool:
     """Whether value is an integer (numpy integers included, bool excluded)."""
     return isinstance(value, numbers.Integral) and not isinstance(value, bool)
 
 
-def _is_real(value: Any) -> bool:
+def is_real(value: Any) -> bool:
     """Whether value is a real number (numpy floats included, bool excluded)."""
     return isinstance(value, numbers.Real) and not isinstance(value, bool)
 
 
-def _check_fitted(est: Estimator, attr: str) -> None:
+def check_fitted(est: Estimator, attr: str) -> None:
     if not hasattr(est, attr):
         raise EstimatorError(f"{est.name}: expected a fitted estimator (call fit first), found it unfitted")
 

@@ -15,11 +15,11 @@ import pandas as pd
 from ofbe_model.estimators.base import Estimator, EstimatorError, check_inputs, register
 from ofbe_model.estimators.common import (
     TRUTH_FORMAT,
-    _check_fitted,
-    _devices,
-    _g_local,
-    _unit_rows,
+    check_fitted,
+    device_column,
+    g_local_column,
     nearest_axes,
+    unit_rows,
     window_means,
 )
 from ofbe_model.estimators.priors import condition_on_norm
@@ -189,7 +189,7 @@ class Oracle(Estimator):
             raise EstimatorError("oracle: expected truth_dir (the simulator's truth folder), found None; "
                                  "the oracle exists on simulated data only")
         self.kind_, self.devices_ = read_truth_devices(self.truth_dir)
-        self._known(_devices(meta))
+        self._known(device_column(meta))
         return self
 
     def _known(self, dev: np.ndarray) -> None:
@@ -202,12 +202,12 @@ class Oracle(Estimator):
     def _posterior(self, windows: np.ndarray, meta: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
         """Estimates (N, 3) m/s² and their standard deviations (N, 3) m/s²."""
         check_inputs(windows, meta)
-        _check_fitted(self, "devices_")
-        dev = _devices(meta)
+        check_fitted(self, "devices_")
+        dev = device_column(meta)
         self._known(dev)
         n_samples = np.asarray(windows).shape[1]
         m = window_means(windows)
-        g = _g_local(meta)
+        g = g_local_column(meta)
         est = np.empty_like(m)
         std = np.empty_like(m)
         for d in sorted(set(dev)):
@@ -222,10 +222,10 @@ class Oracle(Estimator):
             v = (m[rows] - td.offset) @ a_inv.T
             cov_e = a_inv @ td.delta_cov @ a_inv.T
             noise_e = a_inv @ np.diag(noise_var) @ a_inv.T
-            hv, _ = _unit_rows(v)
+            hv, _ = unit_rows(v)
             obs_var = np.einsum("ni,ij,nj->n", hv, noise_e, hv)
             e_hat, e_cov, _ = condition_on_norm(v, g[rows], np.zeros(3), cov_e, obs_var)
-            u, _ = _unit_rows(v - e_hat)
+            u, _ = unit_rows(v - e_hat)
             est[rows] = m[rows] - g[rows, None] * u
             std[rows] = np.sqrt(np.clip(np.einsum("nii->ni", e_cov), 0.0, None) + noise_var)
         return est, std

@@ -19,10 +19,10 @@ from ofbe_model.estimators.batched_bounds import ls_trf_bounded_batch
 from ofbe_model.estimators.common import (
     LS_VARIANTS,
     MG,
-    _as_float_tuple,
-    _g_local,
-    _is_int,
-    _is_real,
+    as_float_tuple,
+    g_local_column,
+    is_int,
+    is_real,
     nearest_axes,
     window_means,
 )
@@ -49,7 +49,7 @@ class LevelMean(Estimator):
         """Bias estimates, (N, 3) m/s²."""
         check_inputs(windows, meta)
         m = window_means(windows)
-        return m - _g_local(meta)[:, None] * nearest_axes(m)
+        return m - g_local_column(meta)[:, None] * nearest_axes(m)
 
 
 # ----------------------------------------------------------------------------- ls-trf
@@ -186,17 +186,17 @@ class LSTRF(Estimator):
         if self.variant not in LS_VARIANTS:
             raise EstimatorError(f"ls-trf variant: expected one of {', '.join(LS_VARIANTS)}, "
                                  f"found {self.variant!r}")
-        x0 = _as_float_tuple(self.x0, 3, "ls-trf x0 (m/s²)")
-        if self.max_nfev is not None and not (_is_int(self.max_nfev) and self.max_nfev > 0):
+        x0 = as_float_tuple(self.x0, 3, "ls-trf x0 (m/s²)")
+        if self.max_nfev is not None and not (is_int(self.max_nfev) and self.max_nfev > 0):
             raise EstimatorError(f"ls-trf max_nfev: expected a positive integer or None, "
                                  f"found {self.max_nfev!r}")
         kw: dict[str, Any] = {"x0": x0, "max_nfev": self.max_nfev}
         if self.variant == "min-norm":
-            if not (_is_real(self.ridge) and math.isfinite(self.ridge) and self.ridge > 0):
+            if not (is_real(self.ridge) and math.isfinite(self.ridge) and self.ridge > 0):
                 raise EstimatorError(f"ls-trf ridge: expected a finite number > 0, found {self.ridge!r}")
             kw["ridge_weight"] = float(self.ridge) * n_samples
         elif self.variant == "bounded":
-            bound = _as_float_tuple(self.bounds_mg, 3, "ls-trf bounds_mg") * MG
+            bound = as_float_tuple(self.bounds_mg, 3, "ls-trf bounds_mg") * MG
             if np.any(bound <= 0):
                 raise EstimatorError(f"ls-trf bounds_mg: expected three limits > 0, found {self.bounds_mg!r}")
             if np.any(np.abs(x0) >= bound):
@@ -216,7 +216,7 @@ class LSTRF(Estimator):
         estimators.batched_bounds.ls_trf_bounded_batch` with them: the same iterations). A
         window the bounded batch could not follow is solved by scipy itself."""
         check_inputs(windows, meta)
-        g = _g_local(meta)
+        g = g_local_column(meta)
         kw = self._solver_kwargs(np.asarray(windows).shape[1])
         if self.variant != "bounded":
             return ls_trf_batch(windows, g, ridge_weight=kw.get("ridge_weight", 0.0), x0=kw["x0"],
@@ -326,11 +326,11 @@ class Won2009(Estimator):
         self._check()
 
     def _check(self) -> None:
-        if not (_is_real(self.tol) and math.isfinite(self.tol) and self.tol > 0):
+        if not (is_real(self.tol) and math.isfinite(self.tol) and self.tol > 0):
             raise EstimatorError(f"won2009 tol: expected a number > 0 (m/s²), found {self.tol!r}")
-        if not (_is_int(self.max_iter) and self.max_iter > 0):
+        if not (is_int(self.max_iter) and self.max_iter > 0):
             raise EstimatorError(f"won2009 max_iter: expected a positive integer, found {self.max_iter!r}")
-        if self.rcond is not None and not (_is_real(self.rcond) and 0 <= self.rcond < 1):
+        if self.rcond is not None and not (is_real(self.rcond) and 0 <= self.rcond < 1):
             raise EstimatorError(f"won2009 rcond: expected None or a number in [0, 1), found {self.rcond!r}")
 
     def solve_window(self, window: np.ndarray, g: float) -> WonResult:
@@ -343,4 +343,5 @@ class Won2009(Estimator):
         once (:func:`~ofbe_model.estimators.batched.won2009_batch`)."""
         check_inputs(windows, meta)
         self._check()
-        return won2009_batch(windows, _g_local(meta), tol=self.tol, max_iter=self.max_iter, rcond=self.rcond)
+        return won2009_batch(windows, g_local_column(meta), tol=self.tol, max_iter=self.max_iter,
+                             rcond=self.rcond)

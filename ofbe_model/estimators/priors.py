@@ -19,12 +19,12 @@ from ofbe_model.estimators.common import (
     GN_ITERATIONS,
     GRAVITY_PRIOR_FORMAT,
     MG,
-    _check_fitted,
-    _devices,
-    _g_local,
-    _is_int,
-    _is_real,
-    _unit_rows,
+    check_fitted,
+    device_column,
+    g_local_column,
+    is_int,
+    is_real,
+    unit_rows,
     window_means,
 )
 from ofbe_model.estimators.domain import TrainingDomain, domain_of
@@ -59,7 +59,7 @@ class PriorMean(Estimator):
         y = np.asarray(labels, dtype=np.float64)
         if y.shape[0] == 0:
             raise EstimatorError("prior-mean: expected at least one training window, found none")
-        dev = _devices(meta)
+        dev = device_column(meta)
         self.overall_ = y.mean(axis=0)
         self.overall_std_ = y.std(axis=0, ddof=1) if y.shape[0] > 1 else np.zeros(3)
         self.means_ = {}
@@ -73,14 +73,14 @@ class PriorMean(Estimator):
     def predict(self, windows: np.ndarray, meta: pd.DataFrame) -> np.ndarray:
         """The device's mean training label per window, (N, 3) m/s²."""
         check_inputs(windows, meta)
-        _check_fitted(self, "means_")
-        return np.array([self.means_.get(d, self.overall_) for d in _devices(meta)]).reshape(-1, 3)
+        check_fitted(self, "means_")
+        return np.array([self.means_.get(d, self.overall_) for d in device_column(meta)]).reshape(-1, 3)
 
     def predict_std(self, windows: np.ndarray, meta: pd.DataFrame) -> np.ndarray:
         """The device's training-label standard deviation per window, (N, 3) m/s²."""
         check_inputs(windows, meta)
-        _check_fitted(self, "stds_")
-        return np.array([self.stds_.get(d, self.overall_std_) for d in _devices(meta)]).reshape(-1, 3)
+        check_fitted(self, "stds_")
+        return np.array([self.stds_.get(d, self.overall_std_) for d in device_column(meta)]).reshape(-1, 3)
 
 
 # ----------------------------------------------------------------------------- gravity-prior maths
@@ -224,7 +224,7 @@ def condition_on_norm(m: np.ndarray, g: np.ndarray | float, mu: np.ndarray, cov:
     ch = np.zeros((n, 3))
     s = np.ones(n)
     for k in range(max(1, n_iter)):
-        h, r = _unit_rows(m - b)
+        h, r = unit_rows(m - b)
         innovation = r - g_n + np.einsum("ni,ni->n", h, b - mu_n)
         ch = np.einsum("nij,nj->ni", cov_n, h)
         s = np.einsum("ni,ni->n", h, ch) + var_n
@@ -343,7 +343,7 @@ class GravityPrior(Estimator):
                 raise EstimatorError(f"gravity-prior {key}: expected true or false, found {flag!r}")
         for key in ("min_std_mg", "min_obs_std_mg", "direction_ridge"):
             v = getattr(self, key)
-            if not (_is_real(v) and math.isfinite(v) and v > 0):
+            if not (is_real(v) and math.isfinite(v) and v > 0):
                 raise EstimatorError(f"gravity-prior {key}: expected a finite number > 0, found {v!r}")
 
     def fit(self, windows: np.ndarray, labels: np.ndarray, meta: pd.DataFrame) -> GravityPrior:
@@ -356,11 +356,11 @@ class GravityPrior(Estimator):
         if not np.all(np.isfinite(y)):
             raise EstimatorError("gravity-prior: expected finite labels, found NaN or infinity")
         m = window_means(windows)
-        g = _g_local(meta)
-        dev = _devices(meta)
+        g = g_local_column(meta)
+        dev = device_column(meta)
         resid = np.linalg.norm(m - y, axis=1) - g
         self.obs_std_ = max(float(np.sqrt(np.mean(resid**2))), self.min_obs_std_mg * MG)
-        h, _ = _unit_rows(m)
+        h, _ = unit_rows(m)
         self.means_, self.slopes_, self.centres_, self.covs_, self.counts_ = {}, {}, {}, {}, {}
         for d in sorted(set(dev)):
             rows = dev == d
@@ -381,12 +381,12 @@ class GravityPrior(Estimator):
     def _posterior(self, windows: np.ndarray, meta: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
         """Posterior means (N, 3) and covariances (N, 3, 3) of every window."""
         check_inputs(windows, meta)
-        _check_fitted(self, "means_")
+        check_fitted(self, "means_")
         m = window_means(windows)
-        g = _g_local(meta)
-        dev = _devices(meta)
+        g = g_local_column(meta)
+        dev = device_column(meta)
         var = self.obs_std_**2
-        h, _ = _unit_rows(m)
+        h, _ = unit_rows(m)
         mean = np.empty((m.shape[0], 3))
         cov = np.empty((m.shape[0], 3, 3))
         known = np.isin(dev, list(self.means_)) if self.per_device else np.zeros(len(dev), dtype=bool)
@@ -427,7 +427,7 @@ class GravityPrior(Estimator):
             "slope": [[3]×3] m/s², "centre": [3]}}, "training_domain": {...}}`` (the last
             from :class:`~ofbe_model.estimators.domain.TrainingDomain`).
         """
-        _check_fitted(self, "means_")
+        check_fitted(self, "means_")
         return {
             "format": GRAVITY_PRIOR_FORMAT,
             "params": self.get_params(),
@@ -464,7 +464,7 @@ class GravityPrior(Estimator):
         except (TypeError, EstimatorError) as exc:
             raise bad("params", "gravity-prior parameters", str(exc)) from None
         obs_std = data.get("obs_std")
-        if not (_is_real(obs_std) and math.isfinite(obs_std) and obs_std > 0):
+        if not (is_real(obs_std) and math.isfinite(obs_std) and obs_std > 0):
             raise bad("obs_std", "a finite number > 0 (m/s²)", obs_std)
         devices = data.get("devices")
         if not isinstance(devices, dict) or not devices:
@@ -490,7 +490,7 @@ class GravityPrior(Estimator):
                     or np.linalg.eigvalsh(cov).min() <= 0:
                 raise bad(f"devices.{d}.cov", "a symmetric positive definite 3×3 matrix ((m/s²)²)",
                           entry.get("cov"))
-            if not (_is_int(count) and count > 0):
+            if not (is_int(count) and count > 0):
                 raise bad(f"devices.{d}.count", "a positive integer", count)
             means[d], covs[d], counts[d], slopes[d], centres[d] = mean, cov, count, slope, centre
         est.obs_std_ = float(obs_std)

@@ -54,13 +54,13 @@ from ofbe_model.estimators.base import Estimator, EstimatorError, check_inputs, 
 from ofbe_model.estimators.domain import TrainingDomain, domain_of
 from ofbe_model.ofbenet.layers import LEGACY_OBJECTS, build_ofbenet, upgrade_legacy
 from ofbe_model.ofbenet.params import (
-    _KERAS_FILES,
-    _PARAM_NAMES,
-    _REFUSED_CLASSES,
-    _STD_FLOOR,
     EVAL_BATCH,
+    KERAS_FILES,
+    PARAM_NAMES,
+    REFUSED_CLASSES,
     SIDECAR_FORMAT,
     SIDECAR_NAME,
+    STD_FLOOR,
     OFBENetParams,
 )
 from ofbe_model.ofbenet.trainer import copy_state, prescale, trainer_for
@@ -151,8 +151,8 @@ def scaling_constants(windows: np.ndarray, labels: np.ndarray,
     else:
         y_mean = labels.mean(axis=0)
         y_std = labels.std(axis=0)
-    x_std = np.where(x_std > _STD_FLOOR, x_std, 1.0)
-    y_std = np.where(y_std > _STD_FLOOR, y_std, 1.0)
+    x_std = np.where(x_std > STD_FLOOR, x_std, 1.0)
+    y_std = np.where(y_std > STD_FLOOR, y_std, 1.0)
     return x_mean, x_std, y_mean, y_std
 
 
@@ -490,7 +490,7 @@ class OFBENet(Estimator):
         try:
             with zipfile.ZipFile(path) as zf:
                 names = set(zf.namelist())
-                missing = [n for n in _KERAS_FILES if n not in names]
+                missing = [n for n in KERAS_FILES if n not in names]
                 if missing:
                     raise EstimatorError(f"{path}: expected {expected}, found an archive without "
                                          f"{', '.join(missing)}")
@@ -528,9 +528,9 @@ class OFBENet(Estimator):
             found = sidecar.get("format") if isinstance(sidecar, dict) else type(sidecar).__name__
             raise EstimatorError(f"{path}: {SIDECAR_NAME}: expected format {SIDECAR_FORMAT}, found {found!r}")
         params = sidecar.get("params")
-        if not isinstance(params, dict) or set(params) - set(_PARAM_NAMES):
+        if not isinstance(params, dict) or set(params) - set(PARAM_NAMES):
             raise EstimatorError(f"{path}: {SIDECAR_NAME}: params: expected a mapping of OFBENet parameters "
-                                 f"({', '.join(_PARAM_NAMES)}), found {params!r}")
+                                 f"({', '.join(PARAM_NAMES)}), found {params!r}")
         try:
             est = cls.from_params(OFBENetParams(**params))
         except ConfigError as exc:
@@ -583,7 +583,7 @@ def _check_config(config: Any, path: Path) -> bool:
         cls_name = node.get("class_name")
         if cls_name is None or cls_name == "__keras_tensor__":  # the latter: a reference to a layer output
             continue
-        if cls_name in _REFUSED_CLASSES:
+        if cls_name in REFUSED_CLASSES:
             raise EstimatorError(f"{path}: config.json: expected only layers that carry no code, found a "
                                  f"{cls_name!r} object (refused: it could execute code)")
         module = node.get("module")

@@ -32,9 +32,9 @@ INPUT_SCALINGS = ("per-axis-standardise", "global-standardise", "none")
 TARGET_SCALINGS = ("standardise", "none")
 DENSE_ACTIVATIONS = ("relu", "linear")
 
-_STD_FLOOR = 1e-12  # a (near-)constant channel is left unscaled rather than divided by ~0
-_KERAS_FILES = ("config.json", "metadata.json", "model.weights.h5")
-_REFUSED_CLASSES = frozenset({"Lambda", "__lambda__", "TFSMLayer", "TorchModuleWrapper", "JaxLayer",
+STD_FLOOR = 1e-12  # a (near-)constant channel is left unscaled rather than divided by ~0
+KERAS_FILES = ("config.json", "metadata.json", "model.weights.h5")
+REFUSED_CLASSES = frozenset({"Lambda", "__lambda__", "TFSMLayer", "TorchModuleWrapper", "JaxLayer",
                               "FlaxLayer"})
 
 
@@ -153,4 +153,4 @@ class OFBENetParams:
         return dataclasses.asdict(self)
 
 
-_PARAM_NAMES = tuple(f.name for f in dataclasses.fields(OFBENetParams))
+PARAM_NAMES = tuple(f.name for f in dataclasses.fields(OFBENetParams))

@@ -6,8 +6,8 @@ Usage::
                [--max-epochs N] [--seeds N] [--params params.yaml] [--quiet]
 
 For every benchmark dataset (the pooled campaign, or one per device: see
-:mod:`ofbe_model.benchmark.evaluation`) and every fold of
-:func:`~ofbe_model.benchmark.evaluation.protocol_splits`, OFBENet is fitted on that fold's
+:mod:`ofbe_data.dataset.folds`) and every fold of
+:func:`~ofbe_data.dataset.folds.protocol_splits`, OFBENet is fitted on that fold's
 training windows (never its test signals) and written to ``<out>/<dataset>/<protocol>/`` with ``/``
 in the dataset name replaced by ``__``:
 
@@ -60,9 +60,9 @@ from ofbe_data.core.atomic import write_bytes_atomic
 from ofbe_data.core.errors import ConfigError
 from ofbe_data.core.figures import new_figure, save_png
 from ofbe_data.core.parallel import map_progress
+from ofbe_data.dataset.folds import Split, protocol_splits
 from ofbe_data.dataset.reader import load_dataset
 from ofbe_data.io.typedconfig import from_plain, read_section
-from ofbe_model.benchmark.evaluation import Split, protocol_splits
 from ofbe_model.ofbenet.network import OFBENet
 from ofbe_model.ofbenet.params import WORKER_ENV, OFBENetParams
 
@@ -77,7 +77,7 @@ DEFAULT_SEEDS = 1
 """Seeds per fold when neither ``train.seeds`` nor ``--seeds`` says."""
 
 
-class _Usage(Exception):
+class TrainingUsageError(Exception):
     """A usage error: exit 2 with this message."""
 
 
@@ -310,7 +310,7 @@ def plan_runs(datasets: Mapping[str, Any], protocols: Sequence[str]) -> list[tup
 
     Raises
     ------
-    _Usage
+    TrainingUsageError
         A protocol that none of the datasets has, or a dataset that has none of them.
     """
     runs: list[tuple[str, str]] = []
@@ -319,13 +319,13 @@ def plan_runs(datasets: Mapping[str, Any], protocols: Sequence[str]) -> list[tup
         have = [c.removeprefix("fold_") for c in ds.meta.columns if c.startswith("fold_")]
         mine = [p for p in protocols if p in have]
         if not mine:
-            raise _Usage(f"--protocol: expected one of the protocols of {dataset} "
+            raise TrainingUsageError(f"--protocol: expected one of the protocols of {dataset} "
                          f"({', '.join(sorted(have))}), found {', '.join(repr(p) for p in protocols)}")
         runs += [(dataset, p) for p in mine]
         used.update(mine)
     missing = [p for p in protocols if p not in used]
     if missing:
-        raise _Usage(f"--protocol: expected protocols of the datasets given, found "
+        raise TrainingUsageError(f"--protocol: expected protocols of the datasets given, found "
                      f"{', '.join(map(repr, missing))} in none of them")
     return runs
 
@@ -340,14 +340,15 @@ def train(dataset: str | Path, protocol: str, out: str | Path, params: OFBENetPa
 
 def _run_splits(ds: Any, protocol: str, folds: Sequence[int] | None) -> list[Split]:
     """The selected folds of one protocol of a loaded dataset that has it (raises
-    :class:`_Usage` for an unknown fold)."""
+    :class:`TrainingUsageError` for an unknown fold)."""
     splits = list(protocol_splits(ds.meta, str(ds.info["kind"]), protocol))
     available = sorted({s.fold for s in splits})
     if folds is not None:
         unknown = sorted(set(folds) - set(available))
         if unknown:
-            raise _Usage(f"--folds: expected folds of {protocol} ({', '.join(map(str, available))}), "
-                         f"found {', '.join(map(str, unknown))}")
+            known = ", ".join(map(str, available))
+            raise TrainingUsageError(f"--folds: expected folds of {protocol} ({known}), "
+                                     f"found {', '.join(map(str, unknown))}")
         splits = [s for s in splits if s.fold in set(folds)]
     return splits
 
@@ -396,7 +397,7 @@ def train_many(datasets: Sequence[str | Path], protocols: Sequence[str], out: st
 
     Raises
     ------
-    _Usage
+    TrainingUsageError
         A protocol none of the datasets has, a dataset with none of them, or an unknown fold.
     OfbeError
         A bad dataset (:class:`~ofbe_data.dataset.store.DatasetError`), a failed fit

@@ -36,6 +36,9 @@ from ofbe_data.labelling.store import read_labels
 from ofbe_data.simulator import load_config, simulate_campaign
 from tests.conftest import imucal_still_norms
 
+pytestmark = pytest.mark.slow
+"""Slow: a campaign or model fixture shared by the module (``-m "not slow"`` leaves it out)."""
+
 MG = 9.80665e-3
 G = 9.80
 NO_DRIFT = {"dut_model": {"drift_sigma_mg": 0.0}}

@@ -8,9 +8,9 @@ from pathlib import Path
 
 import pytest
 
-import ofbe_model.cli.export as export
+import ofbe_data.calibration.output as export
+from ofbe_data.calibration.output import ExportFile, write_outputs
 from ofbe_data.calibration.store import CalibrationStoreError
-from ofbe_model.cli.export import ExportFile, write_outputs
 
 WHEN = datetime(2025, 3, 14, 9, 0, 30, tzinfo=UTC)
 

@@ -263,6 +263,7 @@ The truth files enter it rounded to 9 decimals since 2026-11-27 (was 0e4b2343…
 own bytes, which one CPU without AVX-512 did not reproduce: see :func:`_digest`)."""
 
 
+@pytest.mark.slow
 def test_one_pose_campaigns_never_take_the_continuous_path(examples: Path, tmp_path: Path,
                                                            monkeypatch: pytest.MonkeyPatch) -> None:
     def refuse(*args: Any, **kwargs: Any) -> None:

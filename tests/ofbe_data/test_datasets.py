@@ -33,6 +33,9 @@ from tests.ofbe_data.other_tools import (
     hf_offline,  # noqa: F401 - a fixture, used by name
 )
 
+pytestmark = pytest.mark.slow
+"""Slow: a campaign or model fixture shared by the module (``-m "not slow"`` leaves it out)."""
+
 T = 1000
 PARAMS = DatasetParams(window_length=T, stride=T)
 

@@ -45,6 +45,9 @@ from ofbe_data.dataset.store import (
     write_package_files,
 )
 
+pytestmark = pytest.mark.slow
+"""Slow: a campaign or model fixture shared by the module (``-m "not slow"`` leaves it out)."""
+
 T = 50
 STRIDE = 25
 PROTOCOLS = {

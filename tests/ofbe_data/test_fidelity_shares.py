@@ -29,6 +29,7 @@ def _fidelity(tmp: Path, reference: dict[str, float] | None) -> dict:
     return label_fidelity(read_labels(tmp / "labels" / "raw"), tmp / "raw" / "_truth")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("reference", [None, PERFECT], ids=["paper-reference", "perfect-reference"])
 def test_the_references_share_of_a_rotated_labels_error(tmp_path: Path, reference) -> None:
     fid = _fidelity(tmp_path, reference)

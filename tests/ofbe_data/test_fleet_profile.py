@@ -36,6 +36,7 @@ def test_the_fleet_profile() -> None:
     assert per == 1 and len(cfg.duts) * cfg.sessions * per > DEFAULT_SHARD_WINDOWS
 
 
+@pytest.mark.slow
 def test_tiny_fleet_simulates_labels_and_builds(tmp_path: Path) -> None:
     cfg = load_config("tiny-fleet")
     assert [d.id for d in cfg.duts] == ["unit-001", "unit-002", "unit-003", "unit-004"] and cfg.sessions == 5

@@ -31,6 +31,9 @@ from ofbe_data.labelling.batch import expand_sessions, label_sessions
 from ofbe_data.labelling.labels import LabelParams
 from ofbe_data.simulator import load_config, simulate_campaign
 
+pytestmark = pytest.mark.slow
+"""Slow: a campaign or model fixture shared by the module (``-m "not slow"`` leaves it out)."""
+
 ROOT = Path(__file__).resolve().parents[2]
 GA = ROOT / "raw" / "examples" / "tiny-gravity-aligned"
 T = 1000

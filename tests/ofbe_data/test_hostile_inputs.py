@@ -62,6 +62,7 @@ def _copy_session(dest: Path, session: str = "ga-pc001") -> Path:
 # ----------------------------------------------------------------------------- hangs
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["manifest", "simulator config"])
 def test_a_billion_laughs_document_is_refused_fast(tmp_path: Path, kind: str) -> None:
     if kind == "manifest":
@@ -84,6 +85,7 @@ def test_a_billion_laughs_document_is_refused_fast(tmp_path: Path, kind: str) ->
     assert "at most 200000 values once aliases are expanded" in line
 
 
+@pytest.mark.slow
 def test_a_fifo_named_as_a_device_file_is_refused_not_waited_on(tmp_path: Path) -> None:
     session = _copy_session(tmp_path / "s")
     target = session / "rec-01" / "sparkfun-1.csv"
@@ -96,6 +98,7 @@ def test_a_fifo_named_as_a_device_file_is_refused_not_waited_on(tmp_path: Path) 
     assert f"{target}: expected a readable data file, found a FIFO (named pipe)" in line
 
 
+@pytest.mark.slow
 def test_deep_nesting_is_refused(tmp_path: Path) -> None:
     with pytest.raises(YamlProblem, match=f"nesting at most {MAX_DEPTH} levels deep"):
         YamlDocument("a: " + "[" * 20_000 + "]" * 20_000 + "\n")
@@ -214,6 +217,7 @@ def test_labelling_nothing_is_not_a_success(tmp_path: Path, capsys: pytest.Captu
     assert "ofbe-label: error: no recording was labelled (2 too-short; see the <session>.rejected.json" in err
 
 
+@pytest.mark.slow
 def test_ctrl_c_prints_one_line(tmp_path: Path) -> None:
     # a CI runner may start us with SIGINT ignored (a background job): give the command the default
     # disposition, as a terminal would, so that Python installs its KeyboardInterrupt handler
@@ -246,6 +250,7 @@ _manifest_like = st.fixed_dictionaries({}, optional={
     "power_cycle": _yaml_values, "site": _yaml_values, "devices": _yaml_values, "recordings": _yaml_values})
 
 
+@pytest.mark.slow
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(doc=st.one_of(_manifest_like, _yaml_values), raw=st.binary(max_size=200))
 def test_random_manifests_give_only_ofbe_errors(tmp_path: Path, doc: object, raw: bytes) -> None:
@@ -264,6 +269,7 @@ def test_random_manifests_give_only_ofbe_errors(tmp_path: Path, doc: object, raw
 # ----------------------------------------------------------------------------- ofbe-dataset
 
 
+@pytest.mark.slow
 def test_export_refuses_a_licence_that_is_not_spdx(tmp_path: Path,
                                                    capsys: pytest.CaptureFixture[str]) -> None:
     from ofbe_data.cli.dataset import main as dataset_main
@@ -283,6 +289,7 @@ def test_export_refuses_a_licence_that_is_not_spdx(tmp_path: Path,
     assert "{" not in said
 
 
+@pytest.mark.slow
 def test_a_full_disk_during_export_is_one_line_and_leaves_nothing(tmp_path: Path, capsys,
                                                                     monkeypatch) -> None:
     """Issue 24: a full disk during ``ofbe-dataset export`` was a raw OSError traceback."""
@@ -383,6 +390,7 @@ def test_a_tilted_gravity_aligned_device_is_rejected_as_not_level(tmp_path: Path
     assert row["label_method"] == "level" and abs(row["bias_y"]) > 0.5
 
 
+@pytest.mark.slow
 def test_session_plot_titles_fit_the_figure(tmp_path: Path, monkeypatch) -> None:
     """Issue 22: panel titles with a rejection's reason ran off the figure."""
     import matplotlib
@@ -616,6 +624,7 @@ def test_rows_sorted_by_another_column_are_named_and_sort_by_time_reads_them(tmp
     np.testing.assert_allclose([row[f"bias_{a}"] for a in "xyz"], [0.03, -0.02, 9.83 - 9.80665], atol=1e-3)
 
 
+@pytest.mark.slow
 def test_a_huge_sparse_file_is_refused_before_it_is_read(tmp_path: Path) -> None:
     """Issue 24: a 2 GB file (a good log, then a sparse tail) grew check and label to 24 GB and
     the kernel killed them. It is refused with where the data ends, before it is read

@@ -761,6 +761,7 @@ def _verify(folder: Path, s: Shape) -> None:
             np.testing.assert_allclose(gyro, want.gyro, rtol=0, atol=1e-8)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(SHAPES))
 def test_init_decides_each_shape(tmp_path: Path, name: str, capsys: pytest.CaptureFixture[str]) -> None:
     s = built(name)

@@ -27,6 +27,9 @@ import pytest
 from ofbe_data.core.cli import EXIT_INTERRUPTED
 from ofbe_data.core.entry import INTERRUPTED
 
+pytestmark = pytest.mark.slow
+"""Slow: a campaign or model fixture shared by the module (``-m "not slow"`` leaves it out)."""
+
 ROOT = Path(__file__).resolve().parents[2]
 INSTANTS = int(os.environ.get("OFBE_INTERRUPT_INSTANTS", "8"))
 TIMEOUT_S = 120  # the machine may be slow and busy: a hang is far longer

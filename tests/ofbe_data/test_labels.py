@@ -18,6 +18,9 @@ from ofbe_data.labelling.store import LABEL_SCHEMA, read_labels, read_provenance
 from ofbe_data.simulator import load_config, simulate_campaign
 from tests.conftest import imucal_still_norms
 
+pytestmark = pytest.mark.slow
+"""Slow: a campaign or model fixture shared by the module (``-m "not slow"`` leaves it out)."""
+
 MG = 9.80665e-3
 IDEAL = {"scale_sigma": 0.0, "cross_axis_sigma_deg": 0.0, "mount_sigma_deg": 0.0}
 

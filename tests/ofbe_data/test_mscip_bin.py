@@ -274,6 +274,7 @@ def test_non_regular_files_are_refused(tmp_path):
         read_mscip_bin(tmp_path / "missing.bin")
 
 
+@pytest.mark.slow
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.lists(st.one_of(st.binary(max_size=80), st.sampled_from(_stream(3, timed=True)[0]),
                           st.sampled_from([_packet([1, 2, 3]), b"\xa5\xa5", b"\xa5\xa5\xa2"]),
@@ -294,6 +295,7 @@ def test_any_bytes_give_a_recording_or_raw_format_error(tmp_path_factory, parts)
         assert rec.n >= 1 and np.all(np.diff(rec.t) > 0) and np.isfinite(rec.acc).all()
 
 
+@pytest.mark.slow
 @settings(max_examples=200, deadline=None)
 @given(st.lists(st.tuples(st.integers(0, 300), st.integers(1, 40)), max_size=40))
 def test_overlapping_candidates_resolve_first_come_first_kept(intervals):
@@ -366,6 +368,7 @@ def test_read_device_file_reads_a_manifest_described_stream(tmp_path):
 # ----------------------------------------------------------------------------- simulator
 
 
+@pytest.mark.slow
 def test_simulated_mscip_bin_reference_labels_like_mscip_csv(tmp_path, capsys):
     assert simulate_main(["tiny-rotated", "--out", str(tmp_path / "csv" / "rot"), "--quiet"]) == 0
     assert simulate_main(["tiny-rotated", "--out", str(tmp_path / "bin" / "rot"), "--quiet",

@@ -7,6 +7,8 @@ import io
 import pathlib
 from pathlib import Path
 
+import pytest
+
 import ofbe_data
 from ofbe_data.labelling.labels import LabelParams, label_session
 
@@ -16,6 +18,7 @@ SIMULATOR_ONLY = {"simulator", "simulate.py"}
 TRUTH_READERS = {"fidelity.py", "reports"}
 
 
+@pytest.mark.slow
 def test_labelling_does_not_open_truth_files(examples, monkeypatch):
     opened: list[str] = []
     real_open, real_io_open = builtins.open, io.open

@@ -30,6 +30,7 @@ def test_rodrigues_formula_equals_scipy_rotation_vector(axis, angle):
     np.testing.assert_allclose(rodrigues(axis, angle), expected, atol=1e-12)
 
 
+@pytest.mark.slow
 @given(u=unit_vectors)
 def test_rotation_to_vertical_takes_u_up_by_the_smallest_rotation(u):
     R = rotation_to_vertical(u)

@@ -39,6 +39,9 @@ from ofbe_data.labelling.pose_errors import (
 from ofbe_data.labelling.six_faces import fit_six_faces
 from ofbe_data.simulator import load_config, simulate_campaign
 
+pytestmark = pytest.mark.slow
+"""Slow: a campaign or model fixture shared by the module (``-m "not slow"`` leaves it out)."""
+
 MG = 9.80665e-3
 G = 9.795383
 ONE_DEVICE = {"duts": [{"id": "sparkfun-1"}]}

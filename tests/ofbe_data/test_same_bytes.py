@@ -20,6 +20,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+pytestmark = pytest.mark.slow
+"""Slow: a campaign or model fixture shared by the module (``-m "not slow"`` leaves it out)."""
+
 CAMPAIGNS = ("tiny-rotated", "tiny-multi-position")
 CORETYPES = ("Haswell", "Zen", "Nehalem", "Sandybridge")
 

@@ -55,6 +55,7 @@ def _env(_: int) -> str:
 # ----------------------------------------------------------------------------- results
 
 
+@pytest.mark.slow
 def test_every_scheduler_gives_the_same_results_in_input_order(capsys) -> None:
     items = list(range(12))
     expected = [(x, x * x) for x in items]
@@ -66,6 +67,7 @@ def test_every_scheduler_gives_the_same_results_in_input_order(capsys) -> None:
         assert "distributed" not in err and "Traceback" not in err, scheduler
 
 
+@pytest.mark.slow
 def test_a_running_cluster_is_joined_by_its_address() -> None:
     import dask
     from distributed import LocalCluster
@@ -99,6 +101,7 @@ def test_an_address_nobody_answers_is_one_line(monkeypatch) -> None:
     assert "\n" not in str(info.value)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scheduler", SCHEDULERS)
 def test_the_worker_environment_is_set_before_the_task_runs(scheduler: str) -> None:
     env = {"OFBE_TEST_WORKER_ENV": "set"}
@@ -108,6 +111,7 @@ def test_the_worker_environment_is_set_before_the_task_runs(scheduler: str) -> N
     assert "OFBE_TEST_WORKER_ENV" not in os.environ
 
 
+@pytest.mark.slow
 def test_the_default_scheduler_never_imports_dask() -> None:
     code = ("import sys\n"
             "import ofbe_data, ofbe_data.cli.label\n"
@@ -119,6 +123,7 @@ def test_the_default_scheduler_never_imports_dask() -> None:
     assert done.returncode == 0, done.stderr
 
 
+@pytest.mark.slow
 def test_iter_ordered_streams_in_input_order() -> None:
     items = list(range(12))
     for scheduler in SCHEDULERS:
@@ -129,6 +134,7 @@ def test_iter_ordered_streams_in_input_order() -> None:
 # ----------------------------------------------------------------------------- failures
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("worker_env", [None, {"OFBE_TEST_WORKER_ENV": "set"}], ids=["shared", "own-process"])
 @pytest.mark.parametrize("scheduler", SCHEDULERS)
 def test_a_raising_task_and_a_dying_worker_are_named_and_the_others_complete(scheduler: str,
@@ -140,6 +146,7 @@ def test_a_raising_task_and_a_dying_worker_are_named_and_the_others_complete(sch
                        60, 70]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scheduler", SCHEDULERS)
 def test_raise_mode_raises_the_first_failure_once_the_others_are_done(scheduler: str, tmp_path) -> None:
     with pytest.raises(TaskError) as info:
@@ -158,6 +165,7 @@ def test_the_in_process_path_reports_a_raising_task_too() -> None:
         [10, TaskFailure(1, "ValueError: item 5 is bad"), 20]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scheduler", SCHEDULERS)
 def test_a_task_whose_worker_died_once_is_retried(scheduler: str, tmp_path) -> None:
     items = [(x, str(tmp_path / "ran")) for x in range(5)]
@@ -170,6 +178,7 @@ def test_a_task_whose_worker_died_once_is_retried(scheduler: str, tmp_path) -> N
     assert results == [0, 1, TaskFailure(2, once), 3, 4]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scheduler", SCHEDULERS)
 def test_iter_ordered_raises_at_the_failed_item(scheduler: str) -> None:
     got = []

@@ -51,6 +51,7 @@ def _one_error(err: str) -> str:
     return lines[0]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("layout", sorted(LAYOUTS))
 def test_init_then_check_labels_every_layout(tmp_path: Path, layout: str,
                                              capsys: pytest.CaptureFixture[str]) -> None:
@@ -243,6 +244,7 @@ def test_usage_problems(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> N
     assert main(["check", str(empty)]) == 2
 
 
+@pytest.mark.slow
 def test_console_script_help() -> None:
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     done = subprocess.run([sys.executable, "-m", "ofbe_data.cli.session", "init", "--help"],

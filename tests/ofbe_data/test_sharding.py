@@ -166,6 +166,7 @@ def test_sharded_layout(sharded: Path) -> None:
 # -- loading ---------------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_both_layouts_load_the_same_content(single: Path, sharded: Path) -> None:
     a, b = load_dataset(single), load_dataset(sharded)
     assert a.X.shape == (N, T, 3) and not a.sharded and b.sharded
@@ -208,6 +209,7 @@ def test_sharded_x_is_read_lazily(sharded: Path, monkeypatch: pytest.MonkeyPatch
     assert reads == []
 
 
+@pytest.mark.slow
 def test_tf_dataset_streams_from_the_shards(single: Path, sharded: Path) -> None:
     tf = pytest.importorskip("tensorflow")
     ref = load_dataset(single)
@@ -352,6 +354,7 @@ def _write(dest: Path, blocks: list[tuple[np.ndarray, pd.DataFrame]], shard_wind
     return dest
 
 
+@pytest.mark.slow
 def test_writer_boundaries(tmp_path: Path) -> None:
     blocks = _blocks(4, 3)  # 12 windows
     whole = _write(tmp_path / "none", blocks, None)
@@ -382,6 +385,7 @@ def test_a_failure_after_some_shards_leaves_nothing(tmp_path: Path) -> None:
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.slow
 def test_the_writer_keeps_one_shard_open_and_no_x(tmp_path: Path) -> None:
     t, per, n_blocks, shard = 3000, 8, 40, 24
     template = _blocks(1, per, t)[0][1]
@@ -421,6 +425,7 @@ def test_a_sharded_dataset_exports_whole(sharded: Path, tmp_path: Path) -> None:
     np.testing.assert_array_equal(load_dataset(dest).X, load_dataset(sharded).X)
 
 
+@pytest.mark.slow
 @pytest.mark.usefixtures("hf_offline")
 def test_the_sharded_export_loads_in_hugging_face_croissant_and_frictionless(sharded: Path,
                                                                             tmp_path: Path) -> None:
@@ -466,6 +471,7 @@ def _write_chunks(dest: Path, blocks: list[tuple[np.ndarray, pd.DataFrame]], sha
     (20, [1] * 600, None),                        # windows 521 apart share a hash slot of the cache
     (100, [3, 5, 2] * 60, 560),
 ])
+@pytest.mark.slow
 def test_chunks_compressed_in_the_workers_give_the_bytes_of_the_samples(tmp_path: Path, t, sizes,
                                                                         shard) -> None:
     rng = np.random.default_rng(7)

@@ -70,6 +70,7 @@ def _dvc(cwd: Path, *args: str) -> None:
     subprocess.run([sys.executable, "-m", "dvc", *args], cwd=cwd, check=True, capture_output=True, text=True)
 
 
+@pytest.mark.slow
 def test_push_and_pull_through_a_local_remote(tmp_path) -> None:
     _tiny_dataset(tmp_path / "built")
     project = tmp_path / "project"

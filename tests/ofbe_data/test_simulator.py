@@ -19,6 +19,9 @@ from ofbe_data.simulator import generate_sessions, load_config, simulate_campaig
 from ofbe_data.simulator.campaign import draw_campaign
 from ofbe_data.simulator.physics import MG, plate_direction
 
+pytestmark = pytest.mark.slow
+"""Slow: a campaign or model fixture shared by the module (``-m "not slow"`` leaves it out)."""
+
 LSB = G0 / 256.0
 
 

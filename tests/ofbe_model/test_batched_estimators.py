@@ -128,7 +128,8 @@ def test_ls_trf_batch_stops_where_scipy_stops():
     for i in range(3):
         res = ls_trf_solve(X[i], G, ridge_weight=1e-2 * T)
         assert res.status > 0 and res.nfev < 20
-    trf = batched._TRF(batched._component_major(X, slice(0, 3)), np.full(3, G), 1e-2 * T, np.zeros(3), 300)
+    trf = batched.BatchedTRF(batched.component_major(X, slice(0, 3)), np.full(3, G), 1e-2 * T, np.zeros(3),
+                             300)
     trf.run()
     assert trf.nfev.tolist() == [ls_trf_solve(X[i], G, ridge_weight=1e-2 * T).nfev for i in range(3)]
 

@@ -23,6 +23,9 @@ from ofbe_model.cli.predict import main as predict_main
 from ofbe_model.estimators.base import EstimatorError
 from ofbe_model.estimators.priors import GravityPrior
 
+pytestmark = pytest.mark.slow
+"""Slow: a campaign or model fixture shared by the module (``-m "not slow"`` leaves it out)."""
+
 T = 1000
 FAST = ("level-mean", "ls-trf", "won2009", "prior-mean", "gravity-prior", "oracle")
 

@@ -19,6 +19,9 @@ from ofbe_data.reports import convergence as cr
 from ofbe_data.reports.convergence import ConvergenceParams, analyse, write_report
 from ofbe_data.simulator import load_config, simulate_campaign
 
+pytestmark = pytest.mark.slow
+"""Slow: a campaign or model fixture shared by the module (``-m "not slow"`` leaves it out)."""
+
 FILES = ("convergence.json", "convergence.md", "convergence_histogram.png", "convergence_example.png",
          "convergence_indices.csv", "allan.csv")
 

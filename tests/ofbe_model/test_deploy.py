@@ -38,6 +38,9 @@ from ofbe_model.estimators.priors import GravityPrior
 from ofbe_model.ofbenet.layers import model_scalings
 from ofbe_model.ofbenet.network import OFBENet
 
+pytestmark = pytest.mark.slow
+"""Slow: a campaign or model fixture shared by the module (``-m "not slow"`` leaves it out)."""
+
 G = 9.81
 T_NET = 200
 T_PRIOR = 3000

@@ -493,6 +493,7 @@ def test_direction_prior_recovers_a_linear_mean():
 # ----------------------------------------------------------------------------- oracle
 
 
+@pytest.mark.slow
 def test_oracle_is_never_beaten_beyond_noise(campaign):
     truth, (X, y, meta), (Xt, yt, mt) = campaign
     methods = {

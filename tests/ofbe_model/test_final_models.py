@@ -34,6 +34,9 @@ from ofbe_model.ofbenet.network import OFBENet
 from ofbe_model.ofbenet.params import OFBENetParams
 from tests.ofbe_model.plain_keras import plain_keras_predict
 
+pytestmark = pytest.mark.slow
+"""Slow: a campaign or model fixture shared by the module (``-m "not slow"`` leaves it out)."""
+
 T = 1000
 
 

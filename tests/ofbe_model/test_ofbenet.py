@@ -38,6 +38,9 @@ from ofbe_model.ofbenet.params import FILTERS, SIDECAR_NAME, OFBENetParams
 from ofbe_model.ofbenet.training import dataset_dirname, read_params, read_seed_count
 from tests.ofbe_model.plain_keras import plain_keras_predict
 
+pytestmark = pytest.mark.slow
+"""Slow: a campaign or model fixture shared by the module (``-m "not slow"`` leaves it out)."""
+
 T = 200
 G = 9.81
 ROOT = Path(__file__).resolve().parents[2]

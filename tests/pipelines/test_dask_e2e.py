@@ -17,6 +17,9 @@ from ofbe_data.cli.dataset import main as dataset_main
 from ofbe_data.cli.label import main as label_main
 from ofbe_data.cli.simulate import main as simulate_main
 
+pytestmark = [pytest.mark.slow, pytest.mark.e2e]
+"""Slow: the whole pipeline end to end (``-m "not slow"`` leaves it out)."""
+
 SCHEDULERS = ("processes", "dask")
 
 

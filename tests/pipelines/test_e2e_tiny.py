@@ -20,6 +20,9 @@ import yaml
 from ofbe_data.dataset.store import SCHEMA_VERSION, verify_dataset
 from ofbe_data.labelling.store import LABEL_SCHEMA
 
+pytestmark = [pytest.mark.slow, pytest.mark.e2e]
+"""Slow: the whole pipeline end to end (``-m "not slow"`` leaves it out)."""
+
 ROOT = Path(__file__).resolve().parents[2]
 STAGES = ("simulate", "convergence", "small_angle", "label", "datasets", "train", "benchmark", "deploy",
           "index")
