@@ -289,7 +289,15 @@ def _map(rows: pd.DataFrame, kind: str, where: str) -> tuple[np.ndarray, bool, s
             entries = np.stack([np.diag(row).ravel() for row in scales])
         else:
             fitted = "/".join(sorted(models)) or "label"
-            return identity, False, f"A identity: the {fitted} fit determined no map (too few distinct poses)"
+            if models and models <= MAP_MODELS:
+                why = "too few distinct poses"
+            elif models:  # offset models fit no scales, whether auto chose them or they were forced
+                stated = rows.get("fit_model_reason", pd.Series(dtype=str)).dropna()
+                reasons = sorted({str(r) for r in stated if str(r)})
+                why = "the model fits offsets only" + (f": {reasons[0]}" if reasons else "")
+            else:
+                why = "the label states no fit model"
+            return identity, False, f"A identity: the {fitted} fit determined no map ({why})"
     matrix = _shared(entries, SCALE_AGREEMENT, "map A", where).reshape(3, 3)
     if not np.linalg.det(matrix) > 0:
         raise CalibrationSourceError(f"{where}: expected a map A with a positive determinant, found "

@@ -619,3 +619,21 @@ def test_store_keeps_fractions_of_a_second_and_reads_older_names(tmp_path) -> No
     assert find_calibration(tmp_path, "SparkFun_1", t0) == p
     with pytest.raises(CalibrationStoreError, match="at least one letter or digit"):
         store_path(tmp_path, "-_-", t0, "imucal")
+
+
+def test_an_offset_model_says_it_fits_no_map_not_that_poses_were_too_few(campaign, tmp_path) -> None:
+    """Issue 36: a forced ``offset`` on many distinct poses was exported as "too few distinct poses"."""
+    reason = "forced by fit_model: offset (24 poses in 24 directions)"
+    for f in sorted((campaign / "labels" / "mp").glob("*.parquet")):
+        table = pq.read_table(f)
+        frame = table.to_pandas()
+        frame["fit_model"] = "offset"
+        frame["fit_model_reason"] = reason
+        frame[list(MATRIX_COLUMNS)] = np.nan
+        frame[["scale_x", "scale_y", "scale_z"]] = np.nan
+        out = pa.Table.from_pandas(frame, schema=table.schema, preserve_index=False)
+        pq.write_table(out, tmp_path / f.name)
+    for r in results_from_labels(tmp_path).results:
+        assert not r.scale_known and r.scale == (1.0, 1.0, 1.0)
+        assert r.scale_note == ("A identity: the offset fit determined no map (the model fits offsets only: "
+                                f"{reason})")
