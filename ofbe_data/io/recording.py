@@ -388,23 +388,27 @@ def _span(values: np.ndarray, unit: str | None = None) -> str:
     return both + (" °C" if unit is not None else "")
 
 
-def unit_hint(values: np.ndarray, declared: str) -> str:
+def unit_hint(values: np.ndarray, declared: str, settable: bool = True) -> str:
     """What the finite ``values`` (written in ``declared``, which some do not fit) look like.
 
     ``the values, 285.2 to 291.1, look like kelvin (12.0 to 18.0 °C): set temperature_unit: K``;
     with no unit in which they are all a device temperature, what else they may be: a few values
-    beyond the range among many within, or a scaled or raw value.
+    beyond the range among many within, or a scaled or raw value. ``settable`` False: a format
+    whose unit is fixed (no manifest key changes it), so the advice is about the file instead.
     """
     x = np.asarray(values, dtype=np.float64)
     x = x[np.isfinite(x)]
     fits = [u for u in units_in_range(x) if u != declared]
+    fixed = (f"this format writes {TEMPERATURE_UNIT_WORDS[declared]}: is the file damaged, or of another "
+             "format?")
     if fits:
         words = " or ".join(f"{TEMPERATURE_UNIT_WORDS[u]} ({_span(x, u)})" for u in fits)
-        return f"the values, {_span(x)}, look like {words}: set temperature_unit: {' or '.join(fits)}"
+        advice = f"set temperature_unit: {' or '.join(fits)}" if settable else fixed
+        return f"the values, {_span(x)}, look like {words}: {advice}"
     low, high = TEMPERATURE_RANGE_C
     c = to_celsius(x, declared)
     inside = (c >= low) & (c <= high)
-    without = "leave columns.temperature out to read the file without temperature"
+    without = "leave columns.temperature out to read the file without temperature" if settable else fixed
     if np.any(inside):
         n = int((~inside).sum())
         return (f"{n} of {x.size} values {'is' if n == 1 else 'are'} outside the range, the others "
@@ -414,7 +418,7 @@ def unit_hint(values: np.ndarray, declared: str) -> str:
 
 
 def checked_temperature(path: str | Path, values: np.ndarray, lines: np.ndarray, unit: str,
-                        column: str | int) -> np.ndarray:
+                        column: str | int, settable: bool = True) -> np.ndarray:
     """A temperature column as °C, refused when a value is no device temperature.
 
     Parameters
@@ -429,6 +433,8 @@ def checked_temperature(path: str | Path, values: np.ndarray, lines: np.ndarray,
         ``C``, ``K`` or ``F``: what the manifest declares (``temperature_unit``).
     column
         The column's name or index, for the message.
+    settable
+        Whether a manifest key sets the unit (generic csv); False for formats that fix it.
 
     Returns
     -------
@@ -450,8 +456,9 @@ def checked_temperature(path: str | Path, values: np.ndarray, lines: np.ndarray,
         name = repr(column) if isinstance(column, str) else f"{column} (0-based)"
         raise ImplausibleTemperatureError(
             path, f"a device temperature from {low:g} to {high:g} °C in column {name} "
-                  f"(temperature_unit: {unit}, {TEMPERATURE_UNIT_WORDS[unit]})",
-            f"{float(x[i]):.6g} ({unit_hint(x, unit)})", int(lines[i]))
+                  + (f"(temperature_unit: {unit}, {TEMPERATURE_UNIT_WORDS[unit]})" if settable
+                     else f"({TEMPERATURE_UNIT_WORDS[unit]})"),
+            f"{float(x[i]):.6g} ({unit_hint(x, unit, settable)})", int(lines[i]))
     return celsius
 
 

@@ -354,3 +354,24 @@ def test_init_flags_room_fahrenheit_that_reads_as_hot_celsius(tmp_path: Path) ->
     assert det.mapping is not None and det.mapping.temperature_unit == "C"
     assert det.warnings == ["temperature column 'temp' reads 72.5 °C (median), hot for a device at rest; as "
                             "degrees Fahrenheit it is 22.5 °C: if so, set temperature_unit: F"]
+
+
+def test_the_reference_formats_temperature_gets_the_same_range(tmp_path: Path) -> None:
+    """The Memsense csv export states °C; a kelvin-looking column in it is refused the same way."""
+    from ofbe_data.io.formats.mscip_csv import read_mscip_csv, write_mscip_csv
+
+    n = 50
+    t = np.arange(n) / 100.0
+    acc = np.tile([0.0, 0.0, 1.0], (n, 1))
+    path = tmp_path / "ref.csv"
+    write_mscip_csv(path, t, acc, np.zeros((n, 3)), np.full(n, 298.15), serial="MS-1", rate_hz=100.0,
+                    start_utc="2025-03-14T09:00:00Z")
+    with pytest.raises(ImplausibleTemperatureError) as err:
+        read_mscip_csv(path)
+    assert str(err.value) == (f"{path}:7: expected a device temperature from -40 to 125 °C in column "
+                              "'Temperature (C)' (degrees Celsius), found 298.2 (the values, 298.2, look "
+                              "like kelvin (25.1 °C): this format writes degrees Celsius: is the file "
+                              "damaged, or of another format?)")
+    write_mscip_csv(path, t, acc, np.zeros((n, 3)), np.full(n, 25.0), serial="MS-1", rate_hz=100.0,
+                    start_utc="2025-03-14T09:00:00Z")
+    assert np.all(read_mscip_csv(path).extra[TEMPERATURE] == 25.0)

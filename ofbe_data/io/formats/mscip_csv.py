@@ -30,6 +30,7 @@ from ofbe_data.io.recording import (
     TEMPERATURE,
     ReadDiagnostics,
     Recording,
+    checked_temperature,
 )
 
 # --------------------------------------------------------------------------- mscip-csv
@@ -79,8 +80,9 @@ def read_mscip_csv(path: str | Path, device: str | None = None) -> Recording:
                                  repr(header["Sample Rate (Hz)"])) from None
     gaps = find_gaps(t, body.lines, 1.0 / rate if rate else None)
     extra = {c: v[c] for c in MSCIP_GYRO if c in v}
-    if MSCIP_TEMP in v:
-        extra[TEMPERATURE] = v[MSCIP_TEMP]
+    if MSCIP_TEMP in v:  # the MS-IMU3025 writes °C: a value no device reads is refused, as in csv
+        extra[TEMPERATURE] = checked_temperature(path, v[MSCIP_TEMP], body.lines, "C", MSCIP_TEMP,
+                                                  settable=False)
     diag = ReadDiagnostics(path, col_line, body.lines_read, int(t.shape[0]), tuple(body.skipped),
                            gaps)
     hdr = header | ({"device": device} if device else {})
