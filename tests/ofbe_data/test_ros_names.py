@@ -42,6 +42,6 @@ def test_the_export_refuses_such_a_name_before_writing(tmp_path, capsys) -> None
     assert info.value.code == 2
     err = capsys.readouterr().err.strip().splitlines()[-1]
     assert err == ("ofbe-export ros: error: argument --ros-node: node name 'my node!': expected letters, "
-                   "digits and underscores (at most 255), not starting with a digit (ROS 2 would refuse the file), "
-                   "found '/my node!'")
+                   "digits and underscores (at most 255), not starting with a digit (ROS 2 would refuse the "
+                   "file), found '/my node!'")
     assert not (tmp_path / "out").exists()
