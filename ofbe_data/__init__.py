@@ -39,8 +39,7 @@ rules are in docs/architecture.md and enforced by tests/test_architecture.py.
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from ofbe_data.core.front_door import lazy_names
 
 __version__ = "0.1.0"
 
@@ -63,15 +62,4 @@ _FRONT_DOOR = {
 
 __all__ = ["__version__", *sorted(_FRONT_DOOR)]
 
-
-def __getattr__(name: str) -> Any:
-    module = _FRONT_DOOR.get(name)
-    if module is None:
-        raise AttributeError(f"module 'ofbe_data' has no attribute {name!r}")
-    value = getattr(importlib.import_module(module), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_FRONT_DOOR))
+__getattr__, __dir__ = lazy_names(__name__, _FRONT_DOOR)

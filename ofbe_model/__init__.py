@@ -33,8 +33,7 @@ in :mod:`ofbe_data.reports`.
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from ofbe_data.core.front_door import lazy_names
 
 _FRONT_DOOR = {
     "Estimator": "ofbe_model.estimators",
@@ -51,15 +50,4 @@ _FRONT_DOOR = {
 
 __all__ = sorted(_FRONT_DOOR)
 
-
-def __getattr__(name: str) -> Any:
-    module = _FRONT_DOOR.get(name)
-    if module is None:
-        raise AttributeError(f"module 'ofbe_model' has no attribute {name!r}")
-    value = getattr(importlib.import_module(module), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_FRONT_DOOR))
+__getattr__, __dir__ = lazy_names(__name__, _FRONT_DOOR)

@@ -27,7 +27,7 @@ DATA_RULES: dict[str, frozenset[str]] = {
                       "freeliving", "cli"}),
 }
 #: Top-level modules of ofbe_data that are not in a wing, and what they may import.
-DATA_TOP = {"__init__": frozenset({"dataset", "labelling", "calibration"})}
+DATA_TOP = {"__init__": frozenset({"core", "dataset", "labelling", "calibration"})}
 #: ofbe_model wing → the ofbe_model wings it may import (itself included): estimators, then
 #: the network, the benchmark, the deployed models, predictions, the command lines.
 MODEL_RULES: dict[str, frozenset[str]] = {
