@@ -26,19 +26,19 @@ inputs whose epochs files would have one name).
 from __future__ import annotations
 
 import argparse
-import hashlib
 import sys
 from collections.abc import Sequence
 from datetime import UTC, datetime
 from pathlib import Path
 
 from ofbe_data.core.atomic import write_bytes_atomic
+from ofbe_data.core.checksums import file_sha256
 from ofbe_data.core.cli import EXIT_DATA, add_jobs, add_scheduler, command, fail, io_failure, with_examples
 from ofbe_data.core.errors import OfbeError
 from ofbe_data.core.parallel import iter_ordered
 from ofbe_data.core.scheduler import SchedulerError, TaskError
 from ofbe_data.freeliving import GgirSettings, ggir_calibrate, parse_epoch_csv
-from ofbe_data.freeliving.epochs import EpochTable
+from ofbe_data.freeliving.epochs import EpochTable, is_epoch_csv
 from ofbe_data.freeliving.ofbe import OfbeSettings, ofbe_calibrate
 from ofbe_data.freeliving.raw import RawEpochs, read_raw_epochs
 from ofbe_data.freeliving.summary import (
@@ -59,8 +59,6 @@ EPOCH_SUFFIX = ".csv"
 """Epoch csv files, or csv files of samples."""
 RAW_SUFFIXES = (".cwa", ".bin", ".gt3x")
 """Raw wearable formats (Axivity, GENEActiv, ActiGraph)."""
-EPOCH_COLUMNS = ("meanx", "meany", "meanz")
-"""A csv whose header names these is an epoch csv; any other csv is read as samples."""
 
 __all__ = ["COLUMNS", "PROG", "calibrate_file", "epochs_name", "expand_inputs", "main"]
 
@@ -145,24 +143,6 @@ def epochs_name(path: Path) -> str:
     return path.stem + EPOCHS_SUFFIX
 
 
-def _sha256(path: Path) -> str:
-    digest = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 22), b""):
-            digest.update(block)
-    return digest.hexdigest()
-
-
-def is_epoch_csv(path: Path) -> bool:
-    """Whether a ``.csv`` holds epochs (its first line names meanx, meany and meanz) rather than
-    samples."""
-    with open(path, "rb") as fh:
-        head = fh.read(4096).decode("utf-8", errors="replace").lstrip("\ufeff").splitlines()
-    first = next((line for line in head if line.strip()), "")
-    names = {c.strip().strip('"').lower() for c in first.replace(";", ",").split(",")}
-    return all(c in names for c in EPOCH_COLUMNS)
-
-
 def read_epochs(path: Path, settings: GgirSettings | OfbeSettings, hints: Hints | None = None
                 ) -> tuple[EpochTable, RawEpochs | None]:
     """A recording's epochs, and what its raw file tells (None for an epoch csv); ``hints``
@@ -203,7 +183,7 @@ def calibrate_file(path: Path, settings: GgirSettings | OfbeSettings, hints: Hin
     start = None if raw is None or raw.start_utc is None else datetime.fromisoformat(raw.start_utc)
     if start is not None and start.tzinfo is None:
         start = start.replace(tzinfo=UTC)
-    row = summary_row(str(path), _sha256(path), result, device=None if raw is None else raw.device,
+    row = summary_row(str(path), file_sha256(path), result, device=None if raw is None else raw.device,
                       start_utc=None if start is None else start.astimezone(UTC))
     return row, parquet_bytes(epochs_table(epochs, result)), raw
 

@@ -14,7 +14,6 @@ complete.
 from __future__ import annotations
 
 import sys
-from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -25,7 +24,6 @@ from tqdm import tqdm
 
 from ofbe_data.core.atomic import atomic_directory
 from ofbe_data.core.errors import ConfigError, OfbeError, OutputExistsError
-from ofbe_data.dataset.chunks import Chunk
 from ofbe_data.dataset.fidelity import label_fidelity
 from ofbe_data.dataset.splits import PROTOCOLS, SplitParams, assign_folds
 from ofbe_data.dataset.store import DEFAULT_SHARD_WINDOWS, DatasetInfo, fold_column
@@ -158,14 +156,6 @@ class BuildResult:
     n_shards: int = 1
 
 
-def _chunks(labels: pd.DataFrame, raw_dir: Path, params: WindowParams, jobs: int,
-            scheduler: str) -> Iterator[tuple[int, list[Chunk]]]:
-    """Each label row's windows as stored HDF5 chunks, compressed in the workers
-    (:func:`~ofbe_data.dataset.windows.iter_windows` with ``compressed``) on ``scheduler``: the
-    local process pool, or Dask (sessions streamed in order, a bounded number in flight)."""
-    yield from iter_windows(labels, raw_dir, params, jobs=jobs, compressed=True, scheduler=scheduler)
-
-
 def _describe(raw_dir: Path, labels: pd.DataFrame, simulated: bool) -> str:
     devices = ", ".join(sorted(labels["device"].unique()))
     sessions = labels["session"].nunique()
@@ -288,7 +278,8 @@ def build_dataset(labels_dir: str | Path, raw_dir: str | Path, out_dir: str | Pa
     with (atomic_directory(out_dir, replace=force) as tmp,
           WindowWriter(tmp, info, shard_windows=params.shard_windows) as writer):
         cols = writer.normalise_meta(meta)
-        for i, chunks in _chunks(labels, raw_dir, w, jobs, scheduler):
+        # each row's windows as stored HDF5 chunks, compressed in the workers (sessions in order)
+        for i, chunks in iter_windows(labels, raw_dir, w, jobs=jobs, compressed=True, scheduler=scheduler):
             k = len(chunks)
             if k != counts[i]:
                 r = labels.iloc[i]

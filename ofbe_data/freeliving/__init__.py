@@ -29,6 +29,7 @@ from ofbe_data.freeliving.epochs import (
     EpochFileError,
     EpochTable,
     idle_sleep,
+    is_epoch_csv,
     parse_epoch_csv,
     read_epoch_csv,
 )
@@ -75,6 +76,7 @@ __all__ = [
     "fit_sphere",
     "ggir_calibrate",
     "idle_sleep",
+    "is_epoch_csv",
     "ofbe_calibrate",
     "parse_epoch_csv",
     "read_epoch_csv",

@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ofbe_data.core.errors import OfbeError
+from ofbe_data.core.errors import RawFormatError
 
 MEAN_COLUMNS = ("meanx", "meany", "meanz")
 """Epoch means of the x, y and z axes, g."""
@@ -46,8 +46,19 @@ _NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
 """A plain decimal number, as R and pandas write one."""
 
 
-class EpochFileError(OfbeError):
-    """An epoch csv cannot be read as GGIR's ``spheredata`` layout.
+def is_epoch_csv(path: str | Path) -> bool:
+    """Whether a csv holds epochs rather than samples: its first non-blank line names
+    ``meanx``, ``meany`` and ``meanz`` (any case, quoted or not, split on commas or semicolons)."""
+    with open(path, "rb") as fh:
+        head = fh.read(4096).decode("utf-8", errors="replace").lstrip("\ufeff").splitlines()
+    first = next((line for line in head if line.strip()), "")
+    names = {c.strip().strip('"').lower() for c in first.replace(";", ",").split(",")}
+    return all(c in names for c in MEAN_COLUMNS)
+
+
+class EpochFileError(RawFormatError):
+    """An epoch csv cannot be read as GGIR's ``spheredata`` layout (a
+    :class:`~ofbe_data.core.errors.RawFormatError`, whose message names the file and line).
 
     Parameters
     ----------
@@ -58,14 +69,6 @@ class EpochFileError(OfbeError):
     line
         1-based line of the problem in the file, when there is one.
     """
-
-    def __init__(self, path: str | Path, expected: str, found: str, line: int | None = None) -> None:
-        self.path = Path(path)
-        self.expected = expected
-        self.found = found
-        self.line = line
-        where = f"{path}:{line}: " if line is not None else f"{path}: "
-        super().__init__(f"{where}expected {expected}, found {found}")
 
 
 @dataclass(frozen=True, eq=False)

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 import re
+from abc import ABC, abstractmethod
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,7 +29,7 @@ import numpy as np
 from ofbe_data.core.errors import OfbeError
 from ofbe_data.freeliving.axivity import AxivityStream
 from ofbe_data.freeliving.blocks import BadBlock, RawFileError
-from ofbe_data.freeliving.epochs import MEAN_COLUMNS, SD_COLUMNS
+from ofbe_data.freeliving.epochs import is_epoch_csv
 from ofbe_data.io.detect import sniff_text
 from ofbe_data.io.detect_result import Hints
 from ofbe_data.io.formats import read_device_file
@@ -117,7 +118,7 @@ class Samples:
     temperature_c: np.ndarray | None
 
 
-class Wearable:
+class Wearable(ABC):
     """A wearable file open for reading: :attr:`info`, then :meth:`chunks` once.
 
     After the chunks are read, :attr:`bad_blocks`, :attr:`imputed_samples`, :attr:`gap_stretches`
@@ -136,8 +137,9 @@ class Wearable:
         self.gap_stretches = 0
         self.gap_samples = 0
 
-    def chunks(self) -> Iterator[Samples]:  # pragma: no cover - every reader overrides it
-        raise NotImplementedError
+    @abstractmethod
+    def chunks(self) -> Iterator[Samples]:
+        """The file's samples, in order, a bounded block at a time."""
 
     def _count_gaps(self, time_s: np.ndarray, before: float | None) -> None:
         """Count time-stamp gaps longer than 1.5 sample periods and the samples missing in them."""
@@ -278,10 +280,7 @@ class CsvWearable(Wearable):
     exact_rate = False
 
     def __init__(self, path: Path, hints: Hints | None = None) -> None:
-        with open(path, "rb") as fh:
-            first = fh.readline(4096).decode("utf-8", errors="replace").strip().lstrip("\ufeff")
-        names = {n.strip().strip('"') for n in first.split(",")}
-        if {*MEAN_COLUMNS, *SD_COLUMNS} <= names:
+        if is_epoch_csv(path):
             raise RawFileError(path, "a csv of samples", "an epoch csv (columns meanx … sdz): read it with "
                                                          "ofbe_data.freeliving.read_epoch_csv")
         spec, model = _csv_spec(path, hints)
