@@ -24,7 +24,8 @@ The wings:
   statistics and the report (Table 3, t-tests, figures);
 - :mod:`ofbe_model.deploy`: the deployed models, their cards, TensorFlow Lite and C exports;
 - :mod:`ofbe_model.predict`: a saved model on session folders or bare device files;
-- :mod:`ofbe_model.cli`: ``ofbe-train``, ``ofbe-benchmark``, ``ofbe-predict``, ``ofbe-export``.
+- :mod:`ofbe_model.cli`: ``ofbe-train``, ``ofbe-benchmark``, ``ofbe-predict``, and the model formats
+  of ``ofbe-export`` (``tflite``, ``c-header``; the command is the data package's).
 
 It may import every part of ``ofbe_data`` except its command lines; nothing in ``ofbe_data``
 imports it. Reports that are not about models (convergence, small angle, the index page) are

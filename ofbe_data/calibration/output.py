@@ -1,7 +1,7 @@
 """Writing an export's files: to ``--out`` (a file, or a folder built whole under a temporary
 name) and to a calibration store (``--store``, :mod:`ofbe_data.calibration.store`), every
 target checked before any is written, and whatever this call made removed again when a later
-write fails (``ofbe-export``, :mod:`ofbe_model.cli.export`)."""
+write fails (``ofbe-export``, :mod:`ofbe_data.cli.export`)."""
 
 from __future__ import annotations
 

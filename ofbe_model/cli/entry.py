@@ -10,4 +10,3 @@ from ofbe_data.core.entry import console_script
 train = console_script("ofbe_model.cli.train", "ofbe-train")
 benchmark = console_script("ofbe_model.cli.benchmark", "ofbe-benchmark")
 predict = console_script("ofbe_model.cli.predict", "ofbe-predict")
-export = console_script("ofbe_model.cli.export", "ofbe-export")

@@ -1,45 +1,25 @@
-"""``ofbe-export FORMAT SOURCE --out PATH [--store DIR]``: results in the files other tools load.
+"""The calibration formats of ``ofbe-export`` (:data:`CALIBRATION_FORMATS`): each a
+:class:`~ofbe_data.calibration.registry.Format` whose handler turns the parsed command line into
+the files to write, with its own options and examples.
 
-Calibration formats (:mod:`ofbe_data.calibration`), from a labels folder
-(``processed/labels/<campaign>``), one ``<session>.parquet`` or the JSON ``ofbe-predict``
-prints, one file per device and power cycle (per estimate for predictions; ``ggir``: one file
-per run):
+SOURCE is a labels folder (``processed/labels/<campaign>``), one ``<session>.parquet``, the JSON
+``ofbe-predict`` prints (:mod:`ofbe_data.calibration.results`), or, for ``ggir``, ``json`` and
+``imucal``, an ``ofbe-autocal`` output folder (:mod:`ofbe_data.calibration.autocal`, recognised
+by its ``summary.parquet``): one file per device and power cycle, per estimate, or per calibrated
+recording (``ggir``: one file per run). The conversions are in
+:mod:`ofbe_data.calibration.formats`; writing, ``--force`` and ``--store`` are shared
+(:mod:`ofbe_data.calibration.output`).
 
-- ``imucal``: imucal ``FerrarisCalibrationInfo`` JSON (gyroscope identity/zero);
-- ``kalibr``: Kalibr ``imu.yaml`` noise parameters from the Allan deviation of the labelled
-  stationary segments (needs ``--raw``, the campaign's raw folder); the gyroscope's from the
-  recordings' gyroscope columns or ``--gyro-noise-density``/``--gyro-random-walk``;
-- ``ros``: YAML with the bias to subtract and ``linear_acceleration_covariance``;
-- ``ggir``: GGIR's ``backup.cal.coef`` CSV (offsets in g, GGIR's sign): one file per run, a row
-  per raw file of every device and power cycle (GGIR takes one such file); ``--ggir-data``
-  also rebuilds the raw files as clean CSV that GGIR's csv reader reads whole, with the
-  ``rmc.*`` settings in ``ggir-data.README.txt``;
-- ``json``: ofbe's own ``ofbe-calibration/1``.
-
-One result: ``--out`` is the file (or, an existing folder, the folder it goes in); several:
-``--out`` is a folder of ``<device>.pc<power_cycle>.<ending>``, built under a temporary name
-and renamed. ``--store DIR`` also files each result as
-``DIR/<device>/<device>_<YYYYmmddTHHMMSS[.ffffff]>.<ending>`` (the recording's UTC time; imucal
-files in imucal's own layout; see :mod:`ofbe_data.calibration.store` and
-:func:`ofbe_data.find_calibration`). Nothing is written unless every file can be.
-
-Adding a format is one entry in :data:`FORMATS`: a :class:`Format` whose handler turns the
-parsed arguments into :class:`~ofbe_data.calibration.output.ExportFile` objects, with its own
-options and examples (``ofbe-export FORMAT --help`` shows them); writing, ``--force`` and
-``--store`` are shared (:mod:`ofbe_data.calibration.output`). The model formats
-(``tflite``, ``c-header``) are entries of the same kind whose handlers read a model as SOURCE.
-Exit status: 0 written, 1 bad input data, 2 usage (``ofbe_data.core.cli``).
+:func:`export_formats` is the one registry of the command: these formats, then those other
+packages register through the entry-point group (the model package's ``tflite`` and
+``c-header``, :mod:`ofbe_data.calibration.registry`).
 """
 
 from __future__ import annotations
 
 import argparse
-import os
-import re
 import sys
-import tempfile
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -47,34 +27,22 @@ import numpy as np
 
 from ofbe_data import __version__
 from ofbe_data.calibration import formats as fmt
-from ofbe_data.calibration.noise import RawFiles, attach_raw_times, gyro_noise_of, noise_of
-from ofbe_data.calibration.output import (
-    ExportFile,
-    ExportUsageError,
-    write_outputs,
-    written_time,
+from ofbe_data.calibration.autocal import (
+    AutocalFile,
+    AutocalFolder,
+    autocal_imucal_file,
+    autocal_json_file,
+    calibrated_files,
+    ggir_autocal_table,
+    is_autocal_folder,
+    read_autocal,
 )
+from ofbe_data.calibration.noise import RawFiles, attach_raw_times, gyro_noise_of, noise_of
+from ofbe_data.calibration.output import ExportFile, ExportUsageError, written_time
+from ofbe_data.calibration.registry import PROG, ExportRegistryError, Format, Unavailable, plugin_formats
 from ofbe_data.calibration.results import CalibrationResult, Collected, Segment, load_results
 from ofbe_data.calibration.ros_names import ros_node_problem
-from ofbe_data.core.cli import EXIT_DATA, EXIT_OK, EXIT_USAGE, command, fail, io_failure, with_examples
-from ofbe_data.core.errors import OfbeError
 from ofbe_data.io.recording import TEMPERATURE
-
-PROG = "ofbe-export"
-@dataclass(frozen=True)
-class Format:
-    """An export format: what it makes (``help``), how (``handler``), its own options
-    (``options``, added to its ``ofbe-export FORMAT`` parser) and command lines that use it
-    (``examples``, shown by ``ofbe-export FORMAT --help``)."""
-
-    handler: Callable[[argparse.Namespace], list[ExportFile]]
-    help: str
-    options: Callable[[argparse.ArgumentParser], None] | None = None
-    examples: tuple[str, ...] = ()
-    reads_raw: bool = True
-
-
-# ----------------------------------------------------------------------------- calibration formats
 
 
 def _ros_node(text: str) -> str:
@@ -87,6 +55,10 @@ def _ros_node(text: str) -> str:
 
 def _collect(args: argparse.Namespace, need_raw: bool = False) -> tuple[Collected, RawFiles | None]:
     """The results of SOURCE with their recording times (and the raw files, when given)."""
+    if is_autocal_folder(args.source):
+        raise ExportUsageError(f"{args.source}: {args.format} takes a labels folder, a label file or "
+                               "ofbe-predict's JSON, found an ofbe-autocal folder (it exports as ggir, json "
+                               "or imucal)")
     if need_raw and args.raw is None:
         raise ExportUsageError(f"{args.format} needs --raw DIR (the campaign's raw folder): the noise "
                                "comes from the labelled stationary segments of the raw recordings")
@@ -107,7 +79,38 @@ def _calibration_files(collected: Collected, name: str, render: Callable[..., by
             for r in collected.results]
 
 
+def _autocal(args: argparse.Namespace) -> AutocalFolder | None:
+    """SOURCE read as an ofbe-autocal folder, or None when it is not one."""
+    if not is_autocal_folder(args.source):
+        return None
+    if args.raw is not None:
+        raise ExportUsageError(f"--raw: {args.source} is an ofbe-autocal folder, whose summary names every "
+                               "file; expected no raw folder, found one")
+    return read_autocal(args.source)
+
+
+def _autocal_files(args: argparse.Namespace, folder: AutocalFolder, name: str,
+                   render: Callable[[AutocalFile], bytes]) -> list[ExportFile]:
+    """One file per calibrated recording of an autocal folder, ``<file stem>.<ending>``; a
+    warning line for each recording not calibrated."""
+    done, skipped = calibrated_files(folder)
+    if args.store is not None:
+        unknown = [f.file for f in done if f.device is None or f.start_utc is None]
+        if unknown:
+            raise ExportUsageError(f"--store: {unknown[0]}: expected a device and a start time to file the "
+                                   "calibration by, found none (an epoch csv names neither); leave out "
+                                   "--store")
+    for line in skipped:
+        print(f"{PROG}: warning: skipped {line}", file=sys.stderr)
+    ending = fmt.FORMAT_EXTENSIONS[name]
+    return [ExportFile(f"{f.stem}.{ending}", render(f), f.device, f.start_utc, name) for f in done]
+
+
 def _imucal(args: argparse.Namespace) -> list[ExportFile]:
+    folder = _autocal(args)
+    if folder is not None:
+        now = written_time()
+        return _autocal_files(args, folder, "imucal", lambda f: autocal_imucal_file(folder, f, now))
     collected, _ = _collect(args)
     now = written_time()
     return _calibration_files(collected, "imucal", lambda r: fmt.imucal_file(r, now))
@@ -149,6 +152,9 @@ def _ggir(args: argparse.Namespace) -> list[ExportFile]:
     """One ``backup.cal.coef`` for the whole run (GGIR takes one file: the ``backup.cal.coef``
     parameter of g.part1, R/g.part1.R), per-device copies for ``--store``, and with
     ``--ggir-data`` the raw files rebuilt for GGIR's csv reader."""
+    folder = _autocal(args)
+    if folder is not None:
+        return _ggir_autocal(args, folder)
     if args.ggir_data and args.raw is None:
         raise ExportUsageError("--ggir-data needs --raw DIR: the campaign's raw folder to rebuild the files "
                                "from")
@@ -180,6 +186,22 @@ def _ggir(args: argparse.Namespace) -> list[ExportFile]:
               "the files under those names, or pass --ggir-data --raw DIR to have them rebuilt for GGIR",
               file=sys.stderr)
     return files
+
+
+def _ggir_autocal(args: argparse.Namespace, folder: AutocalFolder) -> list[ExportFile]:
+    """One ``backup.cal.coef`` for an autocal folder
+    (:func:`ofbe_data.calibration.autocal.ggir_autocal_table`), a line for each file that is not a
+    calibrated row."""
+    for flag, given in (("--ggir-data", args.ggir_data), ("--store", args.store is not None),
+                        ("--g-convention local", args.g_convention == "local")):
+        if given:
+            raise ExportUsageError(f"{flag}: {args.source} is an ofbe-autocal folder, whose GGIR export is "
+                                   "one backup.cal.coef on GGIR's unit sphere for the folder's data files as "
+                                   f"they are; expected no {flag}, found it")
+    table, notes = ggir_autocal_table(folder)
+    for note in notes:
+        print(f"{PROG}: ggir: {note}", file=sys.stderr)
+    return [ExportFile(fmt.GGIR_BACKUP_FILE, table)]
 
 
 def _ggir_data_files(collected: Collected, raw: RawFiles, now: datetime) -> list[ExportFile]:
@@ -265,75 +287,14 @@ def _ggir_data_readme(files: Sequence[tuple[str, str, float, int]], with_tempera
 
 
 def _json(args: argparse.Namespace) -> list[ExportFile]:
+    folder = _autocal(args)
+    if folder is not None:
+        now = written_time()
+        return _autocal_files(args, folder, "json", lambda f: autocal_json_file(folder, f, now))
     collected, _ = _collect(args)
     now = written_time()
     return _calibration_files(collected, "json", lambda r: fmt.json_file(r, now))
 
-
-# ----------------------------------------------------------------------------- on-device formats
-
-
-def _training_windows(args: argparse.Namespace) -> tuple[np.ndarray, str]:
-    """The windows a model was trained on, (N, T, 3) m/s², and a description of them; without
-    ``--dataset``, the dataset the model card beside SOURCE names (:func:`card_dataset`)."""
-    what = ""
-    selected = None
-    if args.dataset is None:
-        from ofbe_model.deploy.final import ModelCardError, card_dataset, card_selected_devices
-
-        try:
-            args.dataset, _ = card_dataset(args.source)  # its hash: check_card_dataset below
-        except ModelCardError as exc:
-            raise ExportUsageError(f"{args.format} needs --dataset DIR, the dataset the model was trained on "
-                                   f"(its training windows are the int8 representative set): {exc}") from None
-        what = " (the model card's training data)"
-        selected = card_selected_devices(args.source) if args.device is None else None
-    from ofbe_data import load_dataset
-    from ofbe_model.deploy.tflite import check_card_dataset
-
-    check_card_dataset(args.source, args.dataset)  # a card that names other training data: refused
-    data = load_dataset(args.dataset)
-    keep = np.ones(len(data.meta), dtype=bool)
-    what = f"{args.dataset}{what}"
-    if selected is not None:  # a per-device model: its own device's windows only, as the card says
-        keep &= data.meta["device"].isin(selected).to_numpy()
-        what += f", device {', '.join(selected)}"
-    if args.device is not None:
-        keep &= (data.meta["device"] == args.device).to_numpy()
-        what += f", device {args.device}"
-    if args.protocol is not None:
-        column = f"fold_{args.protocol}"
-        if column not in data.meta.columns:
-            known = ", ".join(c[5:] for c in data.meta.columns if c.startswith("fold_"))
-            raise ExportUsageError(f"--protocol {args.protocol}: {args.dataset} has no {column} column "
-                                   f"(protocols: {known})")
-        if args.fold is None:
-            raise ExportUsageError("--protocol needs --fold K: the fold whose training windows are meant")
-        keep &= (data.meta[column] != args.fold).to_numpy()
-        what += f", training windows of {args.protocol} fold {args.fold}"
-    else:
-        what += ", all windows (a model trained on all of them)"
-    if not keep.any():
-        raise ExportUsageError(f"{what}: no window left to quantise with")
-    return np.asarray(data.X[keep]), what
-
-
-def _tflite(args: argparse.Namespace) -> list[ExportFile]:
-    from ofbe_model.deploy.tflite import export_tflite
-
-    windows, what = _training_windows(args)
-    with tempfile.TemporaryDirectory(prefix=".ofbe-export-") as tmp:
-        sidecar = export_tflite(args.source, tmp, windows, name=args.source.stem, source=what)
-        return [ExportFile(name, (Path(tmp) / name).read_bytes()) for name in sidecar["files"].values()]
-
-
-def _c_header(args: argparse.Namespace) -> list[ExportFile]:
-    from ofbe_model.deploy.c_header import export_c_header
-
-    name = re.sub(r"[^A-Za-z0-9_]", "_", args.source.stem) or "gravity_prior"
-    with tempfile.TemporaryDirectory(prefix=".ofbe-export-") as tmp:
-        path = export_c_header(args.source, Path(tmp) / f"{name}.h", name=name)
-        return [ExportFile(path.name, path.read_bytes())]
 
 
 def _ros_options(p: argparse.ArgumentParser) -> None:
@@ -354,58 +315,16 @@ def _ggir_options(p: argparse.ArgumentParser) -> None:
 
 def _kalibr_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--rostopic", default=fmt.DEFAULT_ROSTOPIC, help="the rostopic written")
-    p.add_argument("--gyro-noise-density", type=_positive, metavar="RAD_S_SQRT_HZ",
+    p.add_argument("--gyro-noise-density", type=positive_number, metavar="RAD_S_SQRT_HZ",
                    help="gyroscope white-noise density, rad/s/sqrt(Hz) (datasheet); when left out, measured "
                         "from the recordings' gyroscope columns")
-    p.add_argument("--gyro-random-walk", type=_positive, metavar="RAD_S2_SQRT_HZ",
+    p.add_argument("--gyro-random-walk", type=positive_number, metavar="RAD_S2_SQRT_HZ",
                    help="gyroscope bias random walk, rad/s^2/sqrt(Hz); when left out, measured from the "
                         "gyroscope columns (or their flagged upper bound)")
 
 
-def _tflite_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--dataset", type=Path, help="the dataset the model was trained on (when left out: the "
-                                                "one model_card.json beside SOURCE names)")
-    p.add_argument("--protocol", help="with --fold, only that fold's training windows")
-    p.add_argument("--fold", type=int, help="the fold of --protocol the model was trained for")
-    p.add_argument("--device", help="only this device's windows (a per-device model)")
-
-
-FORMATS: dict[str, Format] = {
-    "imucal": Format(_imucal, "imucal Ferraris calibration JSON (accelerometer from ofbe, gyroscope "
-                              "identity)",
-                     examples=("ofbe-export imucal mine/labels/lab --out mine/cal/",
-                               "ofbe-export imucal mine/labels/lab --store mine/cal-store")),
-    "kalibr": Format(_kalibr, "Kalibr imu.yaml: accelerometer and gyroscope noise density and random walk "
-                              "from the Allan deviation (gyroscope from its columns or flags); needs --raw",
-                     _kalibr_options,
-                     ("ofbe-export kalibr processed/labels/rotated --raw raw/rotated --out mine/kalibr/",)),
-    "ros": Format(_ros, "YAML: bias to subtract (m/s²) and linear_acceleration_covariance", _ros_options,
-                  ("ofbe-export ros mine/labels/lab --out mine/ros/ --frame-id imu_link",)),
-    "ggir": Format(_ggir, "GGIR backup.cal.coef CSV, one per run: scale.*, offset.* (g, GGIR's sign)",
-                   _ggir_options,
-                   ("ofbe-export ggir mine/labels/lab --out mine/ggir/",
-                    "ofbe-export ggir mine/labels/lab --raw mine/raw/lab --ggir-data --out mine/ggir/")),
-    "json": Format(_json, "ofbe-calibration/1 JSON: bias, std, kind, method, source, time, version",
-                   examples=("ofbe-export json mine/labels/lab --out mine/json/",
-                             "ofbe-export json predictions.json --out mine/json/   # ofbe-predict's output")),
-    "tflite": Format(_tflite, "OFBENet (SOURCE: a .keras) as float32 and int8 TensorFlow Lite with a JSON "
-                              "sidecar of the scaling; --dataset (default: the model card's)",
-                     _tflite_options,
-                     ("ofbe-export tflite models/rotated/sparkfun-1/final.keras --out mine/fw/",),
-                     reads_raw=False),
-    "c-header": Format(_c_header, "the gravity-prior (SOURCE: its .json) as a self-contained C header with a "
-                                  "reference C function",
-                       examples=("ofbe-export c-header models/rotated/sparkfun-1/gravity-prior.json "
-                                 "--out mine/fw/",),
-                       reads_raw=False),
-}
-"""FORMAT → how to export it. A new format is one more entry here."""
-
-
-# ----------------------------------------------------------------------------- command
-
-
-def _positive(text: str) -> float:
+def positive_number(text: str) -> float:
+    """An option's value as a positive finite number (argparse's ``type``)."""
     try:
         value = float(text)
     except ValueError:
@@ -415,80 +334,51 @@ def _positive(text: str) -> float:
     return value
 
 
-def _common_options(p: argparse.ArgumentParser, reads_raw: bool) -> None:
-    p.add_argument("source", metavar="SOURCE", type=Path,
-                   help="labels folder (processed/labels/<campaign>), a <session>.parquet, or "
-                        "ofbe-predict's JSON; for tflite a .keras model, for c-header a gravity-prior .json")
-    p.add_argument("--out", help="output file (one result) or folder (several; a trailing / makes it a "
-                                 "folder for one)")
-    p.add_argument("--store", type=Path,
-                   help="also file each result as STORE/<device>/<device>_<YYYYmmddTHHMMSS[.ffffff]>."
-                        "<ending> (imucal: STORE/<device>/<sensor_id>_<YYYY-mm-dd_HH-MM>.json, imucal's own "
-                        "layout)")
-    if reads_raw:
-        p.add_argument("--raw", type=Path,
-                       help="the campaign's raw folder: recording start times, and the segments kalibr "
-                            "analyses")
-    p.add_argument("--force", action="store_true", help="replace existing output files")
+CALIBRATION_FORMATS: dict[str, Format] = {
+    "imucal": Format(_imucal, "imucal Ferraris calibration JSON (accelerometer from ofbe, gyroscope "
+                              "identity)",
+                     examples=("ofbe-export imucal mine/labels/lab --out mine/cal/",
+                               "ofbe-export imucal mine/labels/lab --store mine/cal-store",
+                               "ofbe-export imucal mine/autocal --out mine/cal/   # an ofbe-autocal folder")),
+    "kalibr": Format(_kalibr, "Kalibr imu.yaml: accelerometer and gyroscope noise density and random walk "
+                              "from the Allan deviation (gyroscope from its columns or flags); needs --raw",
+                     _kalibr_options,
+                     ("ofbe-export kalibr processed/labels/rotated --raw raw/rotated --out mine/kalibr/",)),
+    "ros": Format(_ros, "YAML: bias to subtract (m/s²) and linear_acceleration_covariance", _ros_options,
+                  ("ofbe-export ros mine/labels/lab --out mine/ros/ --frame-id imu_link",)),
+    "ggir": Format(_ggir, "GGIR backup.cal.coef CSV, one per run: scale.*, offset.* (g, GGIR's sign)",
+                   _ggir_options,
+                   ("ofbe-export ggir mine/labels/lab --out mine/ggir/",
+                    "ofbe-export ggir mine/labels/lab --raw mine/raw/lab --ggir-data --out mine/ggir/",
+                    "ofbe-export ggir mine/autocal --out mine/ggir/   # an ofbe-autocal folder")),
+    "json": Format(_json, "ofbe-calibration/1 JSON: bias, std, kind, method, source, time, version",
+                   examples=("ofbe-export json mine/labels/lab --out mine/json/",
+                             "ofbe-export json predictions.json --out mine/json/   # ofbe-predict's output",
+                             "ofbe-export json mine/autocal --out mine/json/   # an ofbe-autocal folder")),
+}
+"""FORMAT → how to export it: this package's calibration formats."""
 
 
-def _every_default() -> dict[str, object]:
-    """Every format's options at their defaults, so that each handler sees every attribute."""
-    scratch = argparse.ArgumentParser(add_help=False)
-    _common_options(scratch, True)
-    for f in FORMATS.values():
-        if f.options is not None:
-            f.options(scratch)
-    return {a.dest: a.default for a in scratch._actions if a.dest != "source"}
+def export_formats() -> tuple[dict[str, Format], dict[str, Unavailable]]:
+    """Every format of ``ofbe-export``: :data:`CALIBRATION_FORMATS`, then those registered by
+    other packages (:func:`ofbe_data.calibration.registry.plugin_formats`), and the registered
+    ones that cannot be imported here.
+
+    Raises
+    ------
+    ExportRegistryError
+        A registered format is not a Format, or takes the name of a calibration format.
+    """
+    plugins, unavailable = plugin_formats()
+    clash = sorted(set(plugins) & set(CALIBRATION_FORMATS))
+    if clash:
+        raise ExportRegistryError(f"entry points {', '.join(clash)}: expected new format names, found "
+                                  "names of ofbe's calibration formats")
+    return {**CALIBRATION_FORMATS, **plugins}, unavailable
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The command-line parser of ``ofbe-export``: one subcommand per format of :data:`FORMATS`,
-    each with the shared options and its own (``ofbe-export FORMAT --help``)."""
-    p = argparse.ArgumentParser(
-        prog=PROG,
-        description="Calibration results (labels or ofbe-predict estimates) in the files other tools load, "
-                    "with their sign and unit conventions converted (docs/exports.md). "
-                    "'ofbe-export FORMAT --help' lists a format's options.")
-    sub = p.add_subparsers(dest="format", required=True, metavar="FORMAT", help=", ".join(FORMATS))
-    defaults = _every_default()
-    for name, f in FORMATS.items():
-        s = sub.add_parser(name, help=f.help, description=f.help)
-        _common_options(s, f.reads_raw)
-        if f.options is not None:
-            f.options(s)
-        s.set_defaults(**defaults)
-        with_examples(s, *(f.examples or (f"ofbe-export {name} SOURCE --out DIR/",)))
-    return with_examples(p, *(f.examples[0] for f in FORMATS.values() if f.examples))
-
-
-@command(PROG)
-def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of ``ofbe-export``: 0 written, 1 bad data, 2 usage."""
-    args = build_parser().parse_args(argv)
-    raw_out = args.out
-    args.out = Path(raw_out) if raw_out is not None else None
-    if args.out is None and args.store is None:
-        return fail(PROG, "expected --out PATH or --store DIR (or both), found neither", EXIT_USAGE)
-    try:
-        files = FORMATS[args.format].handler(args)
-        written = write_outputs(files, args.out, args.store, args.force,
-                                out_is_folder=str(raw_out or "").endswith(("/", os.sep)))
-    except ExportUsageError as exc:
-        return fail(PROG, str(exc), EXIT_USAGE)
-    except OfbeError as exc:
-        return fail(PROG, str(exc), EXIT_DATA)
-    except OSError as exc:
-        return io_failure(PROG, exc, args.out, "the export could not be written")
-    for path in written:
-        print(path)
-    to_out = sum(f.out for f in files) if args.out is not None else 0
-    filed = (sum(f.device is not None and f.store_format is not None for f in files)
-             if args.store is not None else 0)
-    count = to_out + filed
-    print(f"{PROG}: {args.format}: {count} result file{'s' if count != 1 else ''} written", file=sys.stderr)
-    return EXIT_OK
-
-
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
+def export_names() -> tuple[str, ...]:
+    """The name of every format registered with ``ofbe-export``, those that cannot be imported
+    here included (:func:`export_formats`)."""
+    formats, unavailable = export_formats()
+    return (*formats, *unavailable)
