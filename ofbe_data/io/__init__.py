@@ -6,9 +6,7 @@ module per format behind a registry), YAML without surprises (:mod:`~ofbe_data.i
 and typed configuration sections (:mod:`~ofbe_data.io.typedconfig`,
 :mod:`~ofbe_data.io.pipeline_params`), local gravity (:mod:`~ofbe_data.io.gravity`), how a device file is read
 (:mod:`~ofbe_data.io.device_options`), and the detection of an unknown file's layout and
-units for ``ofbe-session init`` (:mod:`~ofbe_data.io.detect`, with
-:mod:`~ofbe_data.io.detect_result`, :mod:`~ofbe_data.io.detect_layout`,
-:mod:`~ofbe_data.io.detect_names`, :mod:`~ofbe_data.io.detect_columns`,
-:mod:`~ofbe_data.io.detect_time` and :mod:`~ofbe_data.io.detect_units`). It may import
+units for ``ofbe-session init`` (:mod:`~ofbe_data.io.detection`, a subpackage whose public
+names are in its ``__init__``, private modules behind them). It may import
 :mod:`ofbe_data.core` only.
 """

@@ -1,9 +1,12 @@
-"""How a device file is read, as its manifest entry says: the generic ``csv`` mapping and the
-``mscip-bin`` options (raw-formats.md, "Generic csv" and "mscip-bin").
+"""How a device file is read, as its manifest entry says: the device entry (:class:`DeviceSpec`),
+the generic ``csv`` mapping and the ``mscip-bin`` options (raw-formats.md, "Generic csv" and
+"mscip-bin").
 
 The records live here, apart from the manifest's validation (:mod:`ofbe_data.io.manifest`),
-so that readers and the detector of ``ofbe-session init`` share them. Their fields are the keys a
-device entry of their format may hold (:data:`FORMAT_OPTIONS`, :func:`option_keys`).
+so that the format registry and its readers (:mod:`ofbe_data.io.formats`), which the manifest
+asks for the format names, and the detector of ``ofbe-session init`` share them without an
+import cycle. The options records' fields are the keys a device entry of their format may hold
+(:data:`FORMAT_OPTIONS`, :func:`option_keys`).
 """
 
 from __future__ import annotations
@@ -145,6 +148,57 @@ class BinOptions:
         if self.acc_unit != "g":
             out["acc_unit"] = self.acc_unit
         return out
+
+
+@dataclass(frozen=True)
+class DeviceSpec:
+    """One device of a session (an entry under ``devices`` of ``session.yaml``).
+
+    Attributes
+    ----------
+    id
+        Device id (key under ``devices``).
+    model
+        Model name, e.g. ``ADXL345``.
+    role
+        ``dut`` (gets labels) or ``reference``.
+    format
+        File format of its recordings (a name of :func:`ofbe_data.io.formats.format_names`).
+    reference_to_sensor
+        (3, 3) nominal rotation taking reference-frame vectors to this sensor's frame, or
+        None when not given (identity assumed where needed).
+    csv
+        Column/unit mapping for ``format: csv``.
+    bin
+        Options for ``format: mscip-bin``.
+    """
+
+    id: str
+    model: str
+    role: str
+    format: str
+    reference_to_sensor: np.ndarray | None = None
+    csv: CsvMapping | None = None
+    bin: BinOptions | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """The manifest keys of the entry (its id is the key it stands under)."""
+        out: dict[str, Any] = {"model": self.model, "role": self.role, "format": self.format}
+        if self.reference_to_sensor is not None:
+            out["reference_to_sensor"] = matrix_to_list(self.reference_to_sensor)
+        if self.csv is not None:
+            out.update(self.csv.to_dict())
+        if self.bin is not None:
+            out.update(self.bin.to_dict())
+        return out
+
+
+def matrix_to_list(m: np.ndarray) -> list[list[float | int]]:
+    """A matrix as nested lists for YAML, whole numbers as ints: (R, C) → R lists of C numbers."""
+    rows: list[list[float | int]] = []
+    for row in np.asarray(m, dtype=float):
+        rows.append([int(v) if float(v).is_integer() else float(v) for v in row])
+    return rows
 
 
 FORMAT_OPTIONS: dict[str, Any] = {"csv": CsvMapping, "mscip-bin": BinOptions}

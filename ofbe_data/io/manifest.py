@@ -32,9 +32,11 @@ from ofbe_data.io.device_options import (
     WHITESPACE,
     BinOptions,
     CsvMapping,
+    DeviceSpec,
     option_key_paths,
     option_keys,
 )
+from ofbe_data.io.formats import formats
 from ofbe_data.io.gravity import local_gravity
 from ofbe_data.io.shared_files import distinct_columns, file_identity, same_file_note
 from ofbe_data.io.typedconfig import closest_key, key_homes, record_keys, register_document, unknown_key_found
@@ -44,7 +46,6 @@ MANIFEST_FORMAT = "ofbe-session/1"
 MANIFEST_NAME = "session.yaml"
 KINDS = ("gravity-aligned", "rotated", "multi-position")
 ROLES = ("dut", "reference")
-FORMATS = ("ofbe-logger", "mscip-csv", "mscip-bin", "csv")
 ID_PATTERN = re.compile(r"^[A-Za-z0-9._-]+$")
 """Campaign, session, device and recording ids."""
 
@@ -72,48 +73,6 @@ class Site:
         if self.gravity_mps2 is not None:
             return {"gravity_mps2": self.gravity_mps2}
         return {"latitude_deg": float(self.latitude_deg or 0.0), "height_m": float(self.height_m or 0.0)}
-
-
-@dataclass(frozen=True)
-class DeviceSpec:
-    """One device of a session.
-
-    Attributes
-    ----------
-    id
-        Device id (key under ``devices``).
-    model
-        Model name, e.g. ``ADXL345``.
-    role
-        ``dut`` (gets labels) or ``reference``.
-    format
-        File format of its recordings.
-    reference_to_sensor
-        (3, 3) nominal rotation taking reference-frame vectors to this sensor's frame, or
-        None when not given (identity assumed where needed).
-    csv
-        Column/unit mapping for ``format: csv``.
-    bin
-        Options for ``format: mscip-bin``.
-    """
-
-    id: str
-    model: str
-    role: str
-    format: str
-    reference_to_sensor: np.ndarray | None = None
-    csv: CsvMapping | None = None
-    bin: BinOptions | None = None
-
-    def to_dict(self) -> dict[str, Any]:
-        out: dict[str, Any] = {"model": self.model, "role": self.role, "format": self.format}
-        if self.reference_to_sensor is not None:
-            out["reference_to_sensor"] = _matrix_to_list(self.reference_to_sensor)
-        if self.csv is not None:
-            out.update(self.csv.to_dict())
-        if self.bin is not None:
-            out.update(self.bin.to_dict())
-        return out
 
 
 @dataclass(frozen=True)
@@ -200,13 +159,6 @@ class SessionManifest:
         return out
 
 
-def _matrix_to_list(m: np.ndarray) -> list[list[float | int]]:
-    rows: list[list[float | int]] = []
-    for row in np.asarray(m, dtype=float):
-        rows.append([int(v) if float(v).is_integer() else float(v) for v in row])
-    return rows
-
-
 TOP_KEYS = (record_keys(SessionManifest) - {"folder"}) | {"format", "gravity_mps2"}
 """Top-level keys: :class:`SessionManifest`'s fields but ``folder``, ``format`` and the g override."""
 SITE_KEYS = record_keys(Site)
@@ -216,9 +168,15 @@ and the options records, whose fields stand beside these (:func:`device_keys`)."
 RECORDING_KEYS = record_keys(RecordingSpec)
 
 
+def format_choices() -> tuple[str, ...]:
+    """The values of a device's ``format``: the registered device formats, in the registry's order
+    (:func:`ofbe_data.io.formats.formats`; a format module registered later is one at once)."""
+    return tuple(f.name for f in formats())
+
+
 def device_keys(fmt: Any) -> frozenset[str]:
     """Keys of a device entry of format ``fmt`` (of any format when ``fmt`` is not a format)."""
-    return DEVICE_KEYS | option_keys(fmt if fmt in FORMATS else None)
+    return DEVICE_KEYS | option_keys(fmt if fmt in format_choices() else None)
 
 
 @functools.cache
@@ -434,7 +392,7 @@ def _parse_devices(v: _Validator, data: dict[str, Any]) -> dict[str, DeviceSpec]
         if not isinstance(model, str) or not model:
             raise v.fail([*where, "model"], "a model name", _describe(model))
         role = v.choice(v.get(entry, where, "role"), [*where, "role"], ROLES)
-        fmt = v.choice(v.get(entry, where, "format"), [*where, "format"], FORMATS)
+        fmt = v.choice(v.get(entry, where, "format"), [*where, "format"], format_choices())
         r2s = None
         if entry.get("reference_to_sensor") is not None:
             r2s = _parse_rotation(v, entry["reference_to_sensor"], [*where, "reference_to_sensor"])

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from ofbe_data.core.errors import ConfigError
+from ofbe_data.io.formats import reference_formats
 from ofbe_data.io.manifest import ID_PATTERN
 from ofbe_data.io.mappings import deep_merge
 from ofbe_data.io.typedconfig import from_plain
@@ -222,8 +223,11 @@ class SimConfig:
     free_living: FreeLivingConfig | None = None
 
 
-REFERENCE_FORMATS = ("mscip-csv", "mscip-bin")
-"""Formats the simulator writes the reference in (raw-formats.md)."""
+DEFAULT_REFERENCE_FORMAT: str = SimConfig.reference_format
+"""The reference's format when a configuration sets none (:class:`SimConfig`'s default). Any
+reference format of the registry (:func:`ofbe_data.io.formats.reference_formats`) may be set;
+``simulator/writing.py`` writes ``mscip-bin`` with its writer and any other with the
+``mscip-csv`` writer, so a new reference format needs its writer there too."""
 
 # ----------------------------------------------------------------------------- loading
 
@@ -284,11 +288,11 @@ def _check(cfg: SimConfig, source: str) -> SimConfig:
         raise ConfigError(source, "reference", "a reference device for kind rotated", "none")
     if cfg.kind != "rotated" and cfg.reference is not None:
         raise ConfigError(source, "reference", f"no reference for kind {cfg.kind}", "one")
-    if cfg.reference_format not in REFERENCE_FORMATS:
-        raise ConfigError(source, "reference_format", "one of " + ", ".join(REFERENCE_FORMATS),
+    if cfg.reference_format not in reference_formats():
+        raise ConfigError(source, "reference_format", "one of " + ", ".join(reference_formats()),
                           repr(cfg.reference_format))
-    if cfg.reference is None and cfg.reference_format != REFERENCE_FORMATS[0]:
-        raise ConfigError(source, "reference_format", f"{REFERENCE_FORMATS[0]} (the default) for a "
+    if cfg.reference is None and cfg.reference_format != DEFAULT_REFERENCE_FORMAT:
+        raise ConfigError(source, "reference_format", f"{DEFAULT_REFERENCE_FORMAT} (the default) for a "
                           f"campaign without a reference (kind {cfg.kind})", repr(cfg.reference_format))
     if not cfg.duts:
         raise ConfigError(source, "duts", "at least one device", "none")
@@ -472,7 +476,7 @@ def config_to_dict(cfg: SimConfig) -> dict[str, Any]:
         return v
 
     out = plain(dataclasses.asdict(cfg))
-    if out["reference_format"] == REFERENCE_FORMATS[0]:
+    if out["reference_format"] == DEFAULT_REFERENCE_FORMAT:
         del out["reference_format"]
     if out["continuous"] is None:
         del out["continuous"]

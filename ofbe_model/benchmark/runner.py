@@ -29,20 +29,28 @@ from ofbe_data.core.errors import ConfigError
 from ofbe_data.dataset.folds import Split, protocol_splits
 from ofbe_data.dataset.reader import load_dataset
 from ofbe_data.io.typedconfig import from_plain
-from ofbe_model.estimators.base import Estimator, EstimatorError, make_estimator
+from ofbe_model.estimators.base import Estimator, EstimatorError, make_estimator, registered_names
 
 #: Meta columns an estimator never sees at prediction time (they are the labels).
 LABEL_COLUMNS = ("bias_x", "bias_y", "bias_z", "offset_x", "offset_y", "offset_z", "gravity_x", "gravity_y",
                  "gravity_z", "roll_deg", "pitch_deg")
 
-DEFAULT_METHODS = ("level-mean", "ls-trf", "ls-trf-as-written", "ls-trf-bounded", "won2009", "prior-mean",
-                   "gravity-prior", "gravity-prior-direction", "ofbenet", "oracle")
 DEFAULT_VARIANTS: dict[str, dict[str, Any]] = {
     "ls-trf-as-written": {"estimator": "ls-trf", "variant": "as-written"},
     "ls-trf-bounded": {"estimator": "ls-trf", "variant": "bounded"},
     "gravity-prior-direction": {"estimator": "gravity-prior", "direction_model": True},
 }
 """Variants the default benchmark runs besides the registered defaults."""
+
+
+def default_methods() -> tuple[str, ...]:
+    """The methods a benchmark runs when its parameters name none: every registered estimator, in
+    registration order (:func:`ofbe_model.estimators.registered_names`), each followed by its
+    variants in :data:`DEFAULT_VARIANTS`. (The pipeline names its own in params.yaml.)"""
+    out: list[str] = []
+    for name in registered_names():
+        out += [name, *(v for v, p in DEFAULT_VARIANTS.items() if p.get("estimator") == name)]
+    return tuple(out)
 
 
 @dataclass(frozen=True)
@@ -61,7 +69,7 @@ class BenchmarkParams:
         variant: as-written}``).
     """
 
-    methods: tuple[str, ...] = DEFAULT_METHODS
+    methods: tuple[str, ...] = field(default_factory=default_methods)
     baselines: tuple[str, ...] = ("ls-trf", "won2009")
     estimator_params: dict[str, dict[str, Any]] = field(default_factory=lambda: dict(DEFAULT_VARIANTS))
 

@@ -114,21 +114,39 @@ def check_inputs(windows: np.ndarray, meta: pd.DataFrame, labels: np.ndarray | N
 
 
 E = TypeVar("E", bound=type[Estimator])
-_REGISTRY: dict[str, type[Estimator]] = {}
+_REGISTRY: dict[str, type[Estimator] | str] = {}
+"""Name → the estimator class, or the module that defines it (registered lazily), in the order
+of registration."""
 
 
 def register(cls: E) -> E:
-    """Class decorator: make an estimator available by its ``name``."""
+    """Class decorator: make an estimator available by its ``name`` (in place of a lazy entry)."""
     if not cls.name:
         raise EstimatorError(f"{cls.__name__}: expected a non-empty class attribute 'name'")
     _REGISTRY[cls.name] = cls
     return cls
 
 
+def register_lazy(name: str, module: str) -> None:
+    """Make estimator ``name`` available before its module is imported: ``make_estimator(name)``
+    imports ``module`` (dotted), whose ``@register`` then registers the class. For an estimator
+    whose module is heavy to import (OFBENet: TensorFlow). No effect when ``name`` is registered."""
+    _REGISTRY.setdefault(name, module)
+
+
+def unregister(name: str) -> None:
+    """Remove an estimator (a plug-in's, or a test's toy estimator); no error when absent."""
+    _REGISTRY.pop(name, None)
+
+
 def estimator_names() -> tuple[str, ...]:
     """Registered names, sorted."""
-    _load_builtin()
     return tuple(sorted(_REGISTRY))
+
+
+def registered_names() -> tuple[str, ...]:
+    """Registered names in the order they were registered (the benchmark's default rows)."""
+    return tuple(_REGISTRY)
 
 
 def make_estimator(name: str, **params: Any) -> Estimator:
@@ -139,25 +157,18 @@ def make_estimator(name: str, **params: Any) -> Estimator:
     EstimatorError
         Unknown name (the message lists the known ones) or unknown parameters.
     """
-    _load_builtin()
-    cls = _REGISTRY.get(name)
-    if cls is None:
+    entry = _REGISTRY.get(name)
+    if entry is None:
         raise EstimatorError(f"estimator: expected one of {', '.join(sorted(_REGISTRY))}, found {name!r}")
+    if isinstance(entry, str):
+        import importlib
+
+        importlib.import_module(entry)
+        entry = _REGISTRY[name]
+        if isinstance(entry, str):
+            raise EstimatorError(f"estimator {name}: expected module {entry} to register it (@register), "
+                                 "found no estimator of that name in it")
     try:
-        return cls(**params)
+        return entry(**params)
     except TypeError as exc:
         raise EstimatorError(f"estimator {name}: {exc}") from None
-
-
-def _load_builtin() -> None:
-    """Import the modules that register the built-in estimators (lazily: OFBENet needs
-    TensorFlow, which is heavy)."""
-    import importlib
-
-    for module in ("ofbe_model.estimators.physics", "ofbe_model.estimators.priors",
-                   "ofbe_model.estimators.oracle", "ofbe_model.ofbenet.network"):
-        try:
-            importlib.import_module(module)
-        except ModuleNotFoundError as exc:  # a module not written yet
-            if exc.name != module:
-                raise

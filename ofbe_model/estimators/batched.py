@@ -27,7 +27,7 @@ the samples, so that the two small singular values (≈ σ/g of the large one: t
 of the cost) keep the digits an SVD of the T×3 matrix would give them. The estimates agree
 with the per-window solvers to rounding (about 1e-10 m/s² after hundreds of iterations
 along the valley, 1e-15 where the problem is well conditioned), the TRF solvers with
-scipy's evaluation counts (tests/ofbe_model/test_batched_estimators.py and
+scipy's evaluation counts (tests/ofbe_model/estimators/test_batched_estimators.py and
 benchmarks/benchmark_speed.py --reference compare them window by window).
 
 Where the time goes: an ``ls-trf`` evaluation is one pass of a dozen array operations over

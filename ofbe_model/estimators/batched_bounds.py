@@ -18,7 +18,7 @@ residual evaluation per window and round, the same outer and inner iterations as
 - ``make_strictly_feasible`` (next float inside), the radius update on ‖step_h‖ and
   scipy's ftol/xtol/gtol tests (the gradient test on v·g).
 
-The estimates agree with scipy's to rounding (tests/ofbe_model/test_batched_estimators.py,
+The estimates agree with scipy's to rounding (tests/ofbe_model/estimators/test_batched_estimators.py,
 benchmarks/benchmark_speed.py --reference). One branch is not batched: where scipy's
 ``intersect_trust_region`` would raise (the step stopped at the bound outside the trust
 region, which rounding alone cannot cause) the window is marked and left to the caller,

@@ -11,7 +11,6 @@ from typing import Any, ClassVar
 
 import numpy as np
 import pandas as pd
-from scipy.optimize import least_squares
 
 from ofbe_model.estimators.base import Estimator, EstimatorError, check_inputs, register
 from ofbe_model.estimators.batched import ls_trf_batch, won2009_batch, won_iterations
@@ -129,6 +128,8 @@ def ls_trf_solve(f: np.ndarray, g: float, *, ridge_weight: float = 0.0,
 
     lo = -np.inf if lower is None else np.asarray(lower, dtype=np.float64)
     hi = np.inf if upper is None else np.asarray(upper, dtype=np.float64)
+    from scipy.optimize import least_squares  # here: importing the estimators (for --help) stays light
+
     res = least_squares(residuals, start, jac=jacobian, method="trf", bounds=(lo, hi), max_nfev=max_nfev)
     return LSResult(np.asarray(res.x, dtype=np.float64), int(res.nfev), int(res.status), float(res.cost))
 

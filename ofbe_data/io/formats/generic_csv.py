@@ -39,7 +39,7 @@ import pyarrow.csv as pacsv
 
 from ofbe_data.core.atomic import write_bytes_atomic
 from ofbe_data.core.errors import RawFormatError
-from ofbe_data.io.device_options import GYRO_KEYS
+from ofbe_data.io.device_options import GYRO_KEYS, WHITESPACE, CsvMapping, DeviceSpec
 from ofbe_data.io.formats.common import (
     MAX_STEP_S,
     Body,
@@ -55,10 +55,9 @@ from ofbe_data.io.formats.filebytes import (
     read_file_bytes,
     split_first_line,
 )
-from ofbe_data.io.formats.registry import register_format
+from ofbe_data.io.formats.registry import Format, register_format
 from ofbe_data.io.formats.writing import assemble, csv_body, fixed_point
 from ofbe_data.io.gravity import G0
-from ofbe_data.io.manifest import WHITESPACE, CsvMapping, DeviceSpec
 from ofbe_data.io.recording import (
     GYRO,
     MISSING_CELLS,
@@ -491,4 +490,4 @@ def _read(path: Path, device: DeviceSpec) -> Recording:
     return read_generic_csv(path, device.csv, device.id)
 
 
-register_format("csv", _read)
+register_format(Format(name="csv", reader=_read))  # init: any text file no other format recognises

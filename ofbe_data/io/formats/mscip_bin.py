@@ -34,6 +34,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 
 from ofbe_data.core.atomic import write_bytes_atomic
 from ofbe_data.core.errors import RawFormatError
+from ofbe_data.io.device_options import BinOptions, DeviceSpec
 from ofbe_data.io.formats.common import (
     MAX_STEP_S,
     MSCIP_GYRO,
@@ -44,9 +45,8 @@ from ofbe_data.io.formats.common import (
     parse_utc,
 )
 from ofbe_data.io.formats.filebytes import read_file_bytes
-from ofbe_data.io.formats.registry import register_format
+from ofbe_data.io.formats.registry import Format, register_format
 from ofbe_data.io.gravity import G0
-from ofbe_data.io.manifest import BinOptions, DeviceSpec
 from ofbe_data.io.recording import SKIP_NON_NUMERIC, ReadDiagnostics, Recording, SkippedLine
 
 SYNC = 0xA5
@@ -590,4 +590,4 @@ def _read(path: Path, device: DeviceSpec) -> Recording:
     return read_mscip_bin(path, opts.sample_rate_hz, opts.acc_unit, device.id)
 
 
-register_format("mscip-bin", _read)
+register_format(Format(name="mscip-bin", reader=_read, reference=True))  # init: a binary file with A5 A5 sync

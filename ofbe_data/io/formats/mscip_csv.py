@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -23,7 +24,7 @@ from ofbe_data.io.formats.common import (
     read_body,
 )
 from ofbe_data.io.formats.filebytes import count_lines, next_line, read_file_bytes
-from ofbe_data.io.formats.registry import register_format
+from ofbe_data.io.formats.registry import Format, Sniffed, register_format
 from ofbe_data.io.formats.writing import assemble, csv_body, fixed_point
 from ofbe_data.io.gravity import G0
 from ofbe_data.io.recording import (
@@ -127,4 +128,22 @@ def write_mscip_csv(
     write_bytes_atomic(path, assemble(preamble, ",".join(MSCIP_COLUMNS), csv_body(cols), None))
 
 
-register_format("mscip-csv", lambda path, device: read_mscip_csv(path, device.id))
+def sniff_mscip_csv(lines: Sequence[str], i: int) -> Sniffed | None:
+    """Whether line ``i`` of a file (0-based) starts an MSCIP export (its title or its column line),
+    with the device and nominal rate of the header lines that follow it (``ofbe-session init``)."""
+    line = lines[i]
+    if line.strip() != "MSCIP Data Export" and not line.startswith("Time (s),Gyro X (deg/s)"):
+        return None
+    model, model_why, rate_note = None, "", None
+    for other in lines[i:i + 10]:
+        key, _, value = other.partition(",")
+        if key == "Device" and value.strip() and model is None:
+            model, model_why = value.strip(), f"header line {other.strip()!r}"
+        elif key == "Sample Rate (Hz)" and value.strip():
+            rate_note = f"header line {other.strip()!r} (nominal)"
+    return Sniffed(evidence=f"MSCIP export line {i + 1}: {line.strip()[:40]!r}", model=model,
+                   model_evidence=model_why, rate_note=rate_note)
+
+
+register_format(Format(name="mscip-csv", reader=lambda path, device: read_mscip_csv(path, device.id),
+                       reference=True, signature="MSCIP export lines", sniff=sniff_mscip_csv))

@@ -25,7 +25,7 @@ from ofbe_data.io.formats.common import (
     read_body,
 )
 from ofbe_data.io.formats.filebytes import count_lines, next_line, read_file_bytes
-from ofbe_data.io.formats.registry import register_format
+from ofbe_data.io.formats.registry import Format, Sniffed, register_format
 from ofbe_data.io.formats.writing import LineHook, assemble, csv_body
 from ofbe_data.io.gravity import G0
 from ofbe_data.io.recording import (
@@ -176,4 +176,18 @@ def write_ofbe_logger(
     write_bytes_atomic(path, data)
 
 
-register_format("ofbe-logger", lambda path, device: read_ofbe_logger(path, device.id))
+def sniff_ofbe_logger(lines: Sequence[str], i: int) -> Sniffed | None:
+    """Whether line ``i`` of a file (0-based) is an ofbe-logger header, with the chip and nominal
+    rate its ``key=value`` comment lines state (``ofbe-session init``)."""
+    if not lines[i].startswith("# ofbe-logger"):
+        return None
+    keys = dict(tok.split("=", 1) for j in range(i, min(i + 10, len(lines)))
+                if lines[j].startswith("#") for tok in lines[j][1:].split() if "=" in tok)
+    chip = keys.get("chip") or None
+    return Sniffed(evidence=f"'# ofbe-logger' header at line {i + 1}", model=chip,
+                   model_evidence=f"header chip={chip}" if chip else "",
+                   rate_note=f"header odr_hz={keys['odr_hz']} (nominal)" if keys.get("odr_hz") else None)
+
+
+register_format(Format(name="ofbe-logger", reader=lambda path, device: read_ofbe_logger(path, device.id),
+                       signature="'# ofbe-logger' header", sniff=sniff_ofbe_logger))

@@ -1,5 +1,5 @@
 """Where the numbers are in a generic csv file: lines, fields, delimiter, decimal mark, comment
-prefix, preamble, column line, and the numbers themselves, for :mod:`ofbe_data.io.detect`.
+prefix, preamble, column line, and the numbers themselves, for :mod:`ofbe_data.io.detection`.
 
 :func:`find_layout` looks at the lines only (no units): the delimiter that splits the last part
 of the sampled lines into a constant number of fields with at least three numeric columns, the
@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from ofbe_data.core.errors import RawFormatError
-from ofbe_data.io.detect_names import unit_of_text
+from ofbe_data.io.detection._names import unit_of_text
 from ofbe_data.io.formats.filebytes import SCAN_BLOCK, line_starts
 from ofbe_data.io.manifest import WHITESPACE
 

@@ -2,37 +2,40 @@
 manifest entry (raw-formats.md, "Generic csv"), each decision with its evidence.
 
 :func:`sniff_text` is what ``ofbe-session init`` runs on every file of a session folder. The
-format comes from the headers (``# ofbe-logger``; the MSCIP export's lines; A5 A5 sync bytes of
-an MSCIP binary stream); any other text file is a generic csv whose delimiter, preamble, comment
-prefix, column line and unit row are found by :mod:`ofbe_data.io.detect_layout`, whose columns
-are found from their names (:mod:`ofbe_data.io.detect_names`) or, without names, their positions
-and values (:mod:`ofbe_data.io.detect_columns`), and whose time unit and rate
-(:mod:`ofbe_data.io.detect_time`) and acceleration and angular-rate units
-(:mod:`ofbe_data.io.detect_units`) are found from the numbers. A file with two accelerometer
+format comes from the A5 A5 sync bytes of an MSCIP binary stream, or from the signature line of
+a registered text format (each format's sniffer, :func:`ofbe_data.io.formats.formats`:
+``# ofbe-logger``, the MSCIP export's lines); any other text file is a generic csv whose
+delimiter, preamble, comment
+prefix, column line and unit row are found by :mod:`ofbe_data.io.detection._layout`, whose columns
+are found from their names (:mod:`ofbe_data.io.detection._names`) or, without names, their positions
+and values (:mod:`ofbe_data.io.detection._columns`), and whose time unit and rate
+(:mod:`ofbe_data.io.detection._time`) and acceleration and angular-rate units
+(:mod:`ofbe_data.io.detection._units`) are found from the numbers. A file with two accelerometer
 triads gives two parts, one per device. Nothing is guessed: a case the file does not settle
-raises :class:`~ofbe_data.io.detect_units.DetectionError` naming the flag that settles it.
+raises :class:`~ofbe_data.io.detection.DetectionError` naming the flag that settles it.
 Finally the file is read back through the detected entry with the reader ``ofbe-session check``
 uses, and the rate reported is the one check reports. What the command line says and what is
-found are :class:`~ofbe_data.io.detect_result.Hints` and
-:class:`~ofbe_data.io.detect_result.Detection`. Reading only, never writing.
+found are :class:`~ofbe_data.io.detection.Hints` and
+:class:`~ofbe_data.io.detection.Detection`. Reading only, never writing.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
 from ofbe_data.core.errors import RawFormatError
-from ofbe_data.io.detect_banner import read_banner
-from ofbe_data.io.detect_columns import (
+from ofbe_data.io.detection._banner import read_banner
+from ofbe_data.io.detection._columns import (
     choose_time_column,
     column_names,
     given_parts,
     named_parts,
     positional_parts,
 )
-from ofbe_data.io.detect_layout import (
+from ofbe_data.io.detection._layout import (
     LAYOUT_LINES,
     MAX_DATA_LINES,
     Layout,
@@ -40,9 +43,9 @@ from ofbe_data.io.detect_layout import (
     find_layout,
     read_numbers,
 )
-from ofbe_data.io.detect_names import TEMP_NAMES, ColumnName, parse_name
-from ofbe_data.io.detect_result import Decision, Detection, Hints, Part
-from ofbe_data.io.detect_time import (
+from ofbe_data.io.detection._names import TEMP_NAMES, ColumnName, parse_name
+from ofbe_data.io.detection._result import Decision, Detection, Hints, Part
+from ofbe_data.io.detection._time import (
     TIME_SCALE,
     decide_time_unit,
     lost_precision,
@@ -50,7 +53,7 @@ from ofbe_data.io.detect_time import (
     stamp_texts,
     step_stats,
 )
-from ofbe_data.io.detect_units import (
+from ofbe_data.io.detection._units import (
     DetectionError,
     decide_acc_unit,
     decide_gyro_unit,
@@ -58,7 +61,7 @@ from ofbe_data.io.detect_units import (
     fmt_num,
 )
 from ofbe_data.io.device_options import BinOptions
-from ofbe_data.io.formats import read_device_file
+from ofbe_data.io.formats import formats, read_device_file
 from ofbe_data.io.formats.filebytes import MAX_FILE_BYTES, is_blank, read_file_bytes
 from ofbe_data.io.formats.mscip_bin import decode_mscip
 from ofbe_data.io.manifest import CsvMapping, DeviceSpec
@@ -117,31 +120,31 @@ def _binary(path: Path, data: bytes, hints: Hints) -> Detection | None:
     return det
 
 
-def _known_text(path: Path, lines: list[str]) -> Detection | None:
-    for i, line in enumerate(lines[:300]):
-        if line.startswith("# ofbe-logger"):
-            det = Detection(path, "ofbe-logger")
-            det.add("format", "ofbe-logger", f"'# ofbe-logger' header at line {i + 1}")
-            keys = dict(tok.split("=", 1) for j in range(i, min(i + 10, len(lines)))
-                        if lines[j].startswith("#") for tok in lines[j][1:].split() if "=" in tok)
-            if keys.get("chip"):
-                det.model = keys["chip"]
-                det.add("model", keys["chip"], f"header chip={keys['chip']}")
-            if keys.get("odr_hz"):
-                det.step_note = f"header odr_hz={keys['odr_hz']} (nominal)"
-            return det
-        if line.strip() == "MSCIP Data Export" or line.startswith("Time (s),Gyro X (deg/s)"):
-            det = Detection(path, "mscip-csv")
-            det.add("format", "mscip-csv", f"MSCIP export line {i + 1}: {line.strip()[:40]!r}")
-            for other in lines[i:i + 10]:
-                key, _, value = other.partition(",")
-                if key == "Device" and value.strip():
-                    det.model = value.strip()
-                    det.add("model", det.model, f"header line {other.strip()!r}")
-                elif key == "Sample Rate (Hz)" and value.strip():
-                    det.step_note = f"header line {other.strip()!r} (nominal)"
+def _known_text(path: Path, lines: Sequence[str]) -> Detection | None:
+    """The registered text format whose signature line comes first in the file's first 300 lines
+    (:attr:`~ofbe_data.io.formats.Format.sniff`), or None."""
+    sniffers = [f for f in formats() if f.sniff is not None]
+    for i in range(min(len(lines), 300)):
+        for fmt in sniffers:
+            assert fmt.sniff is not None
+            found = fmt.sniff(lines, i)
+            if found is None:
+                continue
+            det = Detection(path, fmt.name)
+            det.add("format", fmt.name, found.evidence)
+            if found.model:
+                det.model = found.model
+                det.add("model", found.model, found.model_evidence)
+            if found.rate_note:
+                det.step_note = found.rate_note
             return det
     return None
+
+
+def _generic_evidence() -> str:
+    """Why a text file is a generic csv: none of the registered formats' signatures."""
+    signatures = [f.signature for f in formats() if f.signature]
+    return "no " + " and no ".join(signatures) + ": a generic csv"
 
 
 # --------------------------------------------------------------------------- generic csv
@@ -216,7 +219,7 @@ def _by_index(lines: list[str], lay: Layout, det: Detection) -> bool:
 
 def _sniff_csv(path: Path, lines: list[str], hints: Hints) -> Detection:
     det = Detection(path, "csv")
-    det.add("format", "csv", "no '# ofbe-logger' header and no MSCIP export lines: a generic csv")
+    det.add("format", "csv", _generic_evidence())
     lay, found, warnings = find_layout(path, lines)
     for key, value, why in found:
         det.add(key, value, why)

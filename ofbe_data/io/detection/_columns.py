@@ -1,13 +1,13 @@
 """Which columns of a generic csv file hold the time, the acceleration and the angular rate, for
-:func:`ofbe_data.io.detect.sniff_text`.
+:func:`ofbe_data.io.detection.sniff_text`.
 
-With a column line the names decide (:mod:`ofbe_data.io.detect_names`): one part per
+With a column line the names decide (:mod:`ofbe_data.io.detection._names`): one part per
 accelerometer triad, each with the angular-rate triad of its device. Without one, the
 positions and values do: triads of numeric columns after the time column, a further
 accelerometer reading 1 g as the first does, a triad whose mean at rest has no acceleration's
 norm being the gyroscope. ``--columns`` and ``--time-column`` win over both. The time column
 has a time name, else an index name, else it is the one column that increases monotonically.
-A case the file does not settle raises :class:`~ofbe_data.io.detect_units.DetectionError`
+A case the file does not settle raises :class:`~ofbe_data.io.detection.DetectionError`
 naming the command-line flag that settles it, never a guess.
 """
 
@@ -19,8 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ofbe_data.io.detect_layout import Layout
-from ofbe_data.io.detect_names import (
+from ofbe_data.io.detection._layout import Layout
+from ofbe_data.io.detection._names import (
     INDEX_NAMES,
     TEMP_NAMES,
     ColumnName,
@@ -30,8 +30,8 @@ from ofbe_data.io.detect_names import (
     is_time_name,
     parse_name,
 )
-from ofbe_data.io.detect_result import Hints
-from ofbe_data.io.detect_units import UNIT_TOLERANCE, DetectionError, offset_binary_zero, quiet_mean
+from ofbe_data.io.detection._result import Hints
+from ofbe_data.io.detection._units import UNIT_TOLERANCE, DetectionError, offset_binary_zero, quiet_mean
 from ofbe_data.io.gravity import G0
 
 

@@ -3,10 +3,10 @@
 They come from the time stamps' steps (and their magnitude, for epoch stamps; a unit a name
 states is checked against the rate it gives); a column of integers that increase by 1 is a
 sample index, whose rate must be given or stated in the preamble (``Fs,100``,
-``# sampling rate: 100 Hz``). Pure functions of arrays and lines: :mod:`ofbe_data.io.detect`
+``# sampling rate: 100 Hz``). Pure functions of arrays and lines: :mod:`ofbe_data.io.detection`
 reads the file and calls them. Every decision comes with its evidence (a short text a person
 can check), and a case that the numbers do not settle raises
-:class:`~ofbe_data.io.detect_units.DetectionError` naming the command-line flag that settles
+:class:`~ofbe_data.io.detection.DetectionError` naming the command-line flag that settles
 it, never a guess.
 """
 
@@ -20,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ofbe_data.io.detect_layout import Layout, split_fields
-from ofbe_data.io.detect_units import DetectionError, fmt_num
+from ofbe_data.io.detection._layout import Layout, split_fields
+from ofbe_data.io.detection._units import DetectionError, fmt_num
 
 RATE_RANGE_HZ = (0.5, 20_000.0)
 """Rates an accelerometer logs at (as :data:`ofbe_data.labelling.checks.RATE_RANGE_HZ`)."""
@@ -281,7 +281,7 @@ class LostPrecision:
 def stamp_texts(lines: list[str], lay: Layout, column: int, limit: int = PRECISION_LINES
                 ) -> list[tuple[int, str]]:
     """(file line, text) of a column on the first ``limit`` data lines (the lines
-    :func:`~ofbe_data.io.detect_layout.read_numbers` reads)."""
+    :func:`~ofbe_data.io.detection._layout.read_numbers` reads)."""
     out: list[tuple[int, str]] = []
     for i in range(lay.data_start, len(lines)):
         line = lines[i]

@@ -6,9 +6,9 @@ Column names are taken apart into a base and a stated unit (``'Accel X (g)'`` â†
 gravity-free linear accelerationâ€¦) and a label that tells two of a kind apart (``acc1_x``,
 ``acc2_x``); the acceleration triads become the manifest's ``ax``, ``ay``, ``az``, and the
 angular-rate triad of the same device its ``gx``, ``gy``, ``gz``. :func:`unit_of_text` also
-reads the units of a unit row (:mod:`ofbe_data.io.detect_layout`). Pure functions of names:
-:mod:`ofbe_data.io.detect` calls them. A case the names do not settle (two columns for one
-axis, several candidate triads) raises :class:`~ofbe_data.io.detect_units.DetectionError`
+reads the units of a unit row (:mod:`ofbe_data.io.detection._layout`). Pure functions of names:
+:mod:`ofbe_data.io.detection` calls them. A case the names do not settle (two columns for one
+axis, several candidate triads) raises :class:`~ofbe_data.io.detection.DetectionError`
 naming the command-line flag that settles it, never a guess.
 """
 
@@ -18,7 +18,7 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
-from ofbe_data.io.detect_units import DetectionError
+from ofbe_data.io.detection._units import DetectionError
 
 COLUMNS_FLAG = "--columns t=NAME,ax=NAME,ay=NAME,az=NAME"
 

@@ -7,9 +7,9 @@ all axes near mid-scale of an unsigned converter → offset-binary counts); the 
 from the names, else from values beyond any rad/s an IMU turns at (else it is left unmapped); the
 temperature unit from the name, else from the values (a device's −40…125 °C as °C, kelvin or °F;
 a column no unit settles is left unmapped, with a warning).
-Pure functions of arrays: :mod:`ofbe_data.io.detect` reads the file and calls them (the column
-names are taken apart by :mod:`ofbe_data.io.detect_names`, the time unit and rate found by
-:mod:`ofbe_data.io.detect_time`). Every decision comes with its evidence (a short text a person
+Pure functions of arrays: :mod:`ofbe_data.io.detection` reads the file and calls them (the column
+names are taken apart by :mod:`ofbe_data.io.detection._names`, the time unit and rate found by
+:mod:`ofbe_data.io.detection._time`). Every decision comes with its evidence (a short text a person
 can check), and a case that the numbers do not settle raises :class:`DetectionError` naming the
 command-line flag that settles it, never a guess.
 """

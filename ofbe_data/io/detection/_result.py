@@ -1,10 +1,10 @@
 """What detection is told about a data file and what it finds, for
-:func:`ofbe_data.io.detect.sniff_text`.
+:func:`ofbe_data.io.detection.sniff_text`.
 
 :class:`Hints` holds what the command line says (each None: detect it); :class:`Detection` what
 was found in one file: its format, every :class:`Decision` with its evidence in the order made,
 and for a generic csv one :class:`Part` per accelerometer triad (each a device of its own in the
-manifest). Plain data: the finding is done by :mod:`ofbe_data.io.detect`.
+manifest). Plain data: the finding is done by :mod:`ofbe_data.io.detection`.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from ofbe_data.io.detect_units import fmt_num
+from ofbe_data.io.detection._units import fmt_num
 from ofbe_data.io.manifest import CsvMapping
 
 
