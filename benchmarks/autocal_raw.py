@@ -1,19 +1,26 @@
 """Time and peak memory of reading a week-long raw wearable file into GGIR's epochs.
 
-Writes a synthetic Axivity ``.cwa`` of valid packed ``AX`` blocks (default: 7 days at 100 Hz,
-60.48 M samples, 258 MB; still spells in random orientations and moving spells, 1/256 g counts,
-a daily temperature swing) and measures, each in a fresh process on one core
-(``OMP_NUM_THREADS=1`` …, ``taskset`` to one CPU where available; wall and CPU seconds both
-printed, as a shared machine stretches the wall time):
+Writes synthetic files of the three raw formats (default: 7 days at 100 Hz, 60.48 M samples;
+still spells in random orientations and moving spells, a daily temperature swing):
 
-- ``ofbe``: :func:`ofbe_data.freeliving.raw.read_raw_epochs` (ofbe's block reader, GGIRread's
-  resampling, GGIR's epochs) — the acceptance: ≤ 15 s and ≤ 1.5 GB peak;
+- Axivity ``.cwa`` of valid packed ``AX`` blocks (1/256 g counts, 258 MB);
+- GENEActiv ``.bin`` of 300-sample pages (12-bit counts, the header's gain and offset, 770 MB);
+- ActiGraph ``.gt3x``: a deflated zip of ``info.txt`` and ``log.bin`` ``ACTIVITY`` records
+  (12-bit counts at 256 per g, one record a second);
+
+checks on a small file of each (``--check-days``) that ofbe's reader and actfast read the same
+samples, then measures, each in a fresh process on one core (``OMP_NUM_THREADS=1`` …,
+``taskset`` to one CPU where available, ``nice``; wall and CPU seconds both printed, as a shared
+machine stretches the wall time):
+
+- ``ofbe``: :func:`ofbe_data.freeliving.raw.read_raw_epochs` (ofbe's block readers, GGIR's
+  epochs, the file's SHA-256 from the same reading) — the acceptance: ≤ 15 s and ≤ 1.5 GB peak;
 - ``ofbe+ggir``: the same and :func:`~ofbe_data.freeliving.ggir.ggir_calibrate` on the epochs;
-- ``actfast``: ``actfast.read`` of the same file, which holds every sample at once (what the
-  ``.bin`` and ``.gt3x`` readers cost, per sample, since they go through it).
+- ``actfast``: ``actfast.read`` of the same file, which holds every sample at once.
 
-Run: ``python benchmarks/autocal_raw.py [--days 7] [--rate 100] [--out /tmp/ofbe-autocal-raw]``.
-Prints one line per measurement: wall seconds, peak resident memory (``ru_maxrss``), epochs.
+Run: ``python benchmarks/autocal_raw.py [--days 7] [--rate 100] [--formats cwa,bin,gt3x]
+[--modes ofbe,ofbe+ggir,actfast] [--out /tmp/ofbe-autocal-raw]``. Prints one line per
+measurement: format, mode, wall and CPU seconds, peak resident memory (``ru_maxrss``), epochs.
 """
 
 from __future__ import annotations
@@ -25,6 +32,7 @@ import shutil
 import subprocess
 import sys
 import time
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -72,6 +80,74 @@ def write_week(path: Path, days: float, rate: float, seed: int = 7) -> None:
     tmp.replace(path)
 
 
+def write_week_bin(path: Path, days: float, rate: float, seed: int = 7) -> None:
+    """The synthetic GENEActiv ``.bin`` (written in slices of 2 000 pages)."""
+    from ofbe_data.freeliving.geneactiv import encode_header, encode_pages
+
+    rng = np.random.default_rng(seed)
+    per = 300
+    pages = int(days * 86400 * rate) // per
+    gain, offset = np.array([25875, 25734, 25538]), np.array([439, -662, -3056])
+    t0 = int(np.datetime64("2024-03-04T09:00:00", "ms").astype(np.int64))
+    tmp = path.with_suffix(".partial")
+    with open(tmp, "wb") as fh:
+        fh.write(encode_header(rate, tuple(gain), tuple(offset), pages))
+        for lo in range(0, pages, 2000):
+            m = min(2000, pages - lo)
+            acc = _spells(rng, m * per, rate)
+            counts = np.clip(np.round((acc * gain + offset) / 100.0), -2047, 2047).astype(np.int64)
+            ms = t0 + np.round((lo + np.arange(m)) * per / rate * 1000).astype(np.int64)
+            temp = 25.0 + 5.0 * np.sin(2 * np.pi * (ms - t0) / 86400e3)
+            fh.write(encode_pages(counts.reshape(m, per, 3), ms, rate, temp, lo))
+    tmp.replace(path)
+
+
+def write_week_gt3x(path: Path, days: float, rate: float, seed: int = 7) -> None:
+    """The synthetic ActiGraph ``.gt3x`` (``log.bin`` streamed into the zip, deflated)."""
+    from ofbe_data.freeliving.actigraph import encode_activity, encode_parameters, info_text
+
+    rng = np.random.default_rng(seed)
+    r = int(rate)
+    seconds = int(days * 86400)
+    t0 = int(np.datetime64("2024-03-04T09:00:00", "s").astype(np.int64))
+    tmp = path.with_suffix(".partial")
+    with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED, compresslevel=1) as z:
+        with z.open("log.bin", "w", force_zip64=True) as log:
+            log.write(encode_parameters(256.0, r))
+            for lo in range(0, seconds, 20000):
+                m = min(20000, seconds - lo)
+                acc = _spells(rng, m * r, rate)
+                counts = np.clip(np.round(acc * 256), -2047, 2047).astype(np.int64).reshape(m, r, 3)
+                log.write(encode_activity(counts, t0 + lo + np.arange(m)))
+        z.writestr("info.txt", info_text(r))
+    tmp.replace(path)
+
+
+WRITERS = {"cwa": write_week, "bin": write_week_bin, "gt3x": write_week_gt3x}
+
+
+def check_against_actfast(path: Path) -> str:
+    """ofbe's reader and actfast on one (small) file: the same samples and times, or why not."""
+    import actfast
+
+    from ofbe_data.freeliving.wearables import open_wearable, round_half_away
+
+    w = open_wearable(path)
+    chunks = list(w.chunks())
+    ours = np.concatenate([c.acc_g for c in chunks], axis=1)
+    t = np.concatenate([c.time_s for c in chunks])
+    series = actfast.read(str(path))["timeseries"]
+    high = series.get("high_frequency") or series["acceleration"]
+    theirs = np.ascontiguousarray(high["acceleration"].T, dtype=np.float64)
+    if path.suffix == ".gt3x":
+        theirs = round_half_away(theirs, 3)
+    if path.suffix == ".cwa":  # ofbe resamples .cwa as GGIRread does: compare the counts only
+        return f"{path.name}: {ours.shape[1]} samples resampled (actfast: {theirs.shape[1]} raw)"
+    same = ours.shape == theirs.shape and np.array_equal(ours, theirs) and np.array_equal(
+        t, high["datetime"].astype(np.float64) / 1e9)
+    return f"{path.name}: {ours.shape[1]} samples, {'the same as' if same else 'DIFFERENT FROM'} actfast"
+
+
 def _measure(mode: str, path: Path) -> None:
     """One measurement, in this (fresh) process; the imports are done before the clocks start."""
     if mode == "actfast":
@@ -84,7 +160,8 @@ def _measure(mode: str, path: Path) -> None:
     t = time.perf_counter()
     if mode == "actfast":
         data = actfast.read(str(path))
-        n = len(data["timeseries"]["high_frequency"]["acceleration"])
+        series = data["timeseries"]
+        n = len((series.get("high_frequency") or series["acceleration"])["acceleration"])
         detail = f"{n} samples"
     else:
         raw = read_raw_epochs(path)
@@ -96,7 +173,8 @@ def _measure(mode: str, path: Path) -> None:
     usage = resource.getrusage(resource.RUSAGE_SELF)
     cpu = usage.ru_utime + usage.ru_stime - cpu0
     peak = usage.ru_maxrss / 1024
-    print(f"{mode:<10} wall {seconds:7.2f} s   cpu {cpu:7.2f} s   peak {peak:7.1f} MB   {detail}", flush=True)
+    print(f"{path.suffix[1:]:<5} {mode:<10} wall {seconds:7.2f} s   cpu {cpu:7.2f} s   peak {peak:7.1f} MB   "
+          f"{detail}", flush=True)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -105,26 +183,36 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--rate", type=float, default=100.0)
     p.add_argument("--out", type=Path, default=Path("/tmp/ofbe-autocal-raw"))
     p.add_argument("--measure", choices=("ofbe", "ofbe+ggir", "actfast"), help=argparse.SUPPRESS)
+    p.add_argument("--path", type=Path, help=argparse.SUPPRESS)
+    p.add_argument("--formats", default="cwa,bin,gt3x")
     p.add_argument("--modes", default="ofbe,ofbe+ggir,actfast")
+    p.add_argument("--check-days", type=float, default=0.01,
+                   help="length of the small files checked against actfast first (0: no check)")
     p.add_argument("--cpu", default="0", help="CPU to pin each measurement to ('' for none)")
     args = p.parse_args(argv)
-    path = args.out / f"synthetic-{args.days:g}d-{args.rate:g}hz.cwa"
     if args.measure:
-        _measure(args.measure, path)
+        _measure(args.measure, args.path)
         return 0
     args.out.mkdir(parents=True, exist_ok=True)
-    if not path.exists():
-        t = time.perf_counter()
-        write_week(path, args.days, args.rate)
-        print(f"wrote {path} ({path.stat().st_size / 1e6:.0f} MB) in {time.perf_counter() - t:.0f} s")
     env = {**os.environ, "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
     pin = ["taskset", "-c", args.cpu] if shutil.which("taskset") and args.cpu else []
-    for mode in args.modes.split(","):
-        cmd = [*pin, sys.executable, __file__, "--measure", mode, "--days", f"{args.days}", "--rate",
-               f"{args.rate}", "--out", str(args.out)]
-        done = subprocess.run(cmd, env=env)
-        if done.returncode:
-            print(f"{mode}: exit status {done.returncode}")
+    for fmt in args.formats.split(","):
+        if args.check_days > 0:
+            small = args.out / f"check-{args.check_days:g}d-{args.rate:g}hz.{fmt}"
+            if not small.exists():
+                WRITERS[fmt](small, args.check_days, args.rate)
+            print(check_against_actfast(small), flush=True)
+        path = args.out / f"synthetic-{args.days:g}d-{args.rate:g}hz.{fmt}"
+        if not path.exists():
+            t = time.perf_counter()
+            WRITERS[fmt](path, args.days, args.rate)
+            mb = path.stat().st_size / 1e6
+            print(f"wrote {path} ({mb:.0f} MB) in {time.perf_counter() - t:.0f} s", flush=True)
+        for mode in args.modes.split(","):
+            cmd = [*pin, "nice", "-n", "10", sys.executable, __file__, "--measure", mode, "--path", str(path)]
+            done = subprocess.run(cmd, env=env)
+            if done.returncode:
+                print(f"{fmt} {mode}: exit status {done.returncode}", flush=True)
     return 0
 
 

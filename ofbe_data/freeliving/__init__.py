@@ -15,8 +15,14 @@
 - :mod:`~ofbe_data.freeliving.summary`: ``summary.csv``, ``summary.parquet`` and the epochs files;
 - :mod:`~ofbe_data.freeliving.raw`: raw wearable files (``.cwa``, ``.bin``, ``.gt3x``, csv of
   samples) made into GGIR's epochs (:func:`read_raw_epochs`); the readers are
-  :mod:`~ofbe_data.freeliving.wearables`, :mod:`~ofbe_data.freeliving.axivity` and
-  :mod:`~ofbe_data.freeliving.blocks`.
+  :mod:`~ofbe_data.freeliving.wearables` (one interface), ofbe's own block readers
+  :mod:`~ofbe_data.freeliving.axivity`, :mod:`~ofbe_data.freeliving.geneactiv` and
+  :mod:`~ofbe_data.freeliving.actigraph`, :mod:`~ofbe_data.freeliving.blocks` (GGIR's resampling
+  and bad blocks) and :mod:`~ofbe_data.freeliving.hashing` (each file's sha256 from the pass that
+  reads it);
+- :mod:`~ofbe_data.freeliving.params`: ``ofbe-autocal``'s settings and its ``--params`` file;
+- :mod:`~ofbe_data.freeliving.plots`: ``--plots``' figure per file (still epochs on the sphere and
+  the norm error against temperature, before and after).
 
 The command is ``ofbe-autocal`` (:mod:`ofbe_data.cli.autocal`); docs/free-living.md describes
 it. This package may import :mod:`ofbe_data.core`, :mod:`ofbe_data.io` (raw readers, for the
@@ -50,7 +56,6 @@ from ofbe_data.freeliving.ggir import (
 )
 from ofbe_data.freeliving.ofbe import OfbeResult, OfbeSettings, ofbe_calibrate
 from ofbe_data.freeliving.raw import IdleSleep, RawEpochs, read_raw_epochs
-from ofbe_data.freeliving.wearables import MissingReaderError
 
 __all__ = [
     "QC_DONE",
@@ -67,7 +72,6 @@ __all__ = [
     "GgirResult",
     "GgirSettings",
     "IdleSleep",
-    "MissingReaderError",
     "OfbeResult",
     "OfbeSettings",
     "RawEpochs",

@@ -39,7 +39,6 @@ import math
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import BinaryIO
 
 import numpy as np
 
@@ -57,6 +56,7 @@ from ofbe_data.freeliving.blocks import (
     decode_blocks,
     read_header,
 )
+from ofbe_data.freeliving.hashing import HashingReader
 
 MAX_CORRUPT_BLOCKS = 20
 """GGIRread's ``maxAllowedCorruptBlocks``."""
@@ -189,7 +189,9 @@ class AxivityStream:
     """GGIRread's ``readAxivity(filename, start, end)`` as a stream of :class:`SampleChunk`.
 
     Iterate it once; afterwards :attr:`qc_log`, :attr:`bad_blocks`, :attr:`rows` and
-    :attr:`imputed_rows` hold what the reading found. Memory: :data:`CHUNK_BLOCKS` blocks at a time.
+    :attr:`imputed_rows` hold what the reading found, and :attr:`sha256` the file's SHA-256 (hex),
+    computed from the blocks as they are read (:class:`~ofbe_data.freeliving.hashing.HashingReader`;
+    None when nothing was read). Memory: :data:`CHUNK_BLOCKS` blocks at a time.
 
     Parameters
     ----------
@@ -222,6 +224,7 @@ class AxivityStream:
         self._bad: dict[int, BadBlock] = {}
         self.rows = 0
         self.imputed_rows = 0
+        self.sha256: str | None = None
         self.params: CwaParams | None = None
         if (size - HEADER_BYTES) % BLOCK_BYTES and size > HEADER_BYTES:
             n = self.header.n_blocks
@@ -234,7 +237,7 @@ class AxivityStream:
 
     # ----------------------------------------------------------------- file access
 
-    def _sectors(self, fh: BinaryIO, first: int, count: int) -> np.ndarray:
+    def _sectors(self, fh: HashingReader, first: int, count: int) -> np.ndarray:
         fh.seek(HEADER_BYTES + BLOCK_BYTES * first)
         data = fh.read(BLOCK_BYTES * count)
         return np.frombuffer(data, dtype=np.uint8).reshape(-1, BLOCK_BYTES)
@@ -244,7 +247,7 @@ class AxivityStream:
             i = first + int(k)
             self._bad.setdefault(i, BadBlock(i, HEADER_BYTES + BLOCK_BYTES * i, bad_reason(sectors[k])))
 
-    def _one(self, fh: BinaryIO, i: int) -> tuple[bool, np.ndarray]:
+    def _one(self, fh: HashingReader, i: int) -> tuple[bool, np.ndarray]:
         sec = self._sectors(fh, i, 1)
         ok = bool(block_status(sec)[0])
         self._note_bad(sec, i, np.array([ok]))
@@ -256,7 +259,7 @@ class AxivityStream:
 
     # ----------------------------------------------------------------- GGIRread's phases
 
-    def _first_block_length(self, fh: BinaryIO, n: int) -> int:
+    def _first_block_length(self, fh: HashingReader, n: int) -> int:
         """``readHeader``: samples in the first valid block from block 0."""
         for i in range(min(n - 1, self.max_corrupt) + 1):
             ok, sec = self._one(fh, i)
@@ -264,7 +267,7 @@ class AxivityStream:
                 return int(decode_blocks(sec[None, :], i, block_params(sec)).count[0])
         raise self._fail(f"a valid data block among the first {min(n, self.max_corrupt + 1)}", "none", 0)
 
-    def _end_time(self, fh: BinaryIO, n: int, start: int, end: int, length: int) -> tuple[int, float]:
+    def _end_time(self, fh: HashingReader, n: int, start: int, end: int, length: int) -> tuple[int, float]:
         """The grid's end (GGIRread's ``endTimestamp``) and the possibly moved ``end``."""
         step = 1.0 / self.header.sample_rate_hz
         if end < n:
@@ -286,7 +289,7 @@ class AxivityStream:
             raise self._fail("a valid block among those requested", "all requested blocks bad", start)
         raise self._fail(f"a valid block among the last {self.max_corrupt + 1}", "all bad", end)
 
-    def _first_valid(self, fh: BinaryIO, start: int, end: int) -> tuple[int, np.ndarray]:
+    def _first_valid(self, fh: HashingReader, start: int, end: int) -> tuple[int, np.ndarray]:
         """The first valid block from ``start`` (bad ones logged), and its sector."""
         for _ in range(min(end - start, self.max_corrupt + 1)):
             ok, sec = self._one(fh, start)
@@ -306,7 +309,8 @@ class AxivityStream:
         end = n if self.end is None else min(self.end, n)
         if end <= start or n == 0:
             return
-        with open(self.path, "rb") as fh:
+        with open(self.path, "rb") as raw:
+            fh = HashingReader(raw)
             length = self._first_block_length(fh, n)
             end, t_end = self._end_time(fh, n, start, end, length)
             start, sec = self._first_valid(fh, start, end)
@@ -332,6 +336,7 @@ class AxivityStream:
                 chunk = self._last_block(state, params, step)
                 if chunk is not None:
                     yield chunk
+            self.sha256 = fh.hexdigest()
         self.rows = state.rows
 
     def _pairs(self, blocks: CwaBlocks, state: _State, params: CwaParams, step: float) -> SampleChunk | None:

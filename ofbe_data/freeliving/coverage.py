@@ -1,7 +1,7 @@
 """Whether a recording's still epochs populate the sphere enough to calibrate, and where not.
 
-The bench asks for poses on both faces of every axis (:mod:`ofbe_data.labelling.six_faces`,
-:mod:`ofbe_data.labelling.next_pose`); a wearable is not placed, it is worn, so its still
+The bench asks for poses on both faces of every axis (:mod:`ofbe_data.labelling.multiposition._six_faces`,
+:mod:`ofbe_data.labelling.multiposition._next_pose`); a wearable is not placed, it is worn, so its still
 epochs fall where the wearer left it. The rule generalises the six faces to wear:
 
     every signed axis (+x, −x, +y, −y, +z, −z) must have pointed within
@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ofbe_data.labelling.six_faces import FACE_ORDER
+from ofbe_data.labelling.multiposition import FACE_ORDER
 
 COVERAGE_DEG = 45.0
 """A still epoch counts for a signed axis when its mean lies within this angle of it."""

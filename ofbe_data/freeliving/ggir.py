@@ -77,6 +77,25 @@ _LOAD_ROWS_MARGIN = 21
 ones: hours less a margin, compared with a count of epochs, as GGIR does."""
 
 
+class SettingsError(ValueError):
+    """A setting of :class:`GgirSettings` or :class:`~ofbe_data.freeliving.ofbe.OfbeSettings`
+    out of its range; ``name`` is the field, so that a parameter file can name its key.
+
+    Parameters
+    ----------
+    record
+        The settings' class name (``GgirSettings``).
+    name
+        The field.
+    expected, found
+        What the field takes and what was given.
+    """
+
+    def __init__(self, record: str, name: str, expected: str, found: str) -> None:
+        self.name, self.expected, self.found = name, expected, found
+        super().__init__(f"{record}.{name}: expected {expected}, found {found}")
+
+
 @dataclass(frozen=True)
 class GgirSettings:
     """The settings of ``g.calibrate`` that a user may change (GGIR's defaults).
@@ -108,7 +127,7 @@ class GgirSettings:
         for name in ("still_sd_g", "sphere_crit_g", "min_load_hours", "epoch_s"):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
-                raise ValueError(f"GgirSettings.{name}: expected a positive number, found {value!r}")
+                raise SettingsError("GgirSettings", name, "a positive number", repr(value))
 
 
 @dataclass(frozen=True, eq=False)

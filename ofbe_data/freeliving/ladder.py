@@ -1,6 +1,6 @@
 """The model ladder for wear: the richest model a recording's still epochs support.
 
-The bench's ladder (:func:`ofbe_data.labelling.ladder.choose_fit`) in the same order, with the
+The bench's ladder (:func:`ofbe_data.labelling.multiposition.choose_fit`) in the same order, with the
 same rules, on robust fits (:func:`~ofbe_data.freeliving.robust.fit_robust`):
 
 1. ``offset``; when the still epochs have temperatures spanning at least 5 °C
@@ -16,9 +16,9 @@ Significance: the bench's F-test compares residual sums of squares, which presum
 independent errors of one variance; a wearable's still epochs are neither (epochs of one
 posture share their error, some are not still at all). Here each richer model's extra
 parameters are tested against the ideal sensor (scales 1, angles 0, slopes 0) by a Wald test
-on their cluster-robust covariance (:func:`ofbe_data.labelling.ladder.wald_test`): kept when
+on their cluster-robust covariance (:func:`ofbe_data.labelling.multiposition.wald_test`): kept when
 p < ``alpha`` (0.05). An ``offset`` model is kept only when an unseen scale error cannot move
-it by more than the bench's 0.5 mg (:func:`ofbe_data.labelling.ladder.scale_leak_mg`); beyond
+it by more than the bench's 0.5 mg (:func:`ofbe_data.labelling.multiposition.scale_leak_mg`); beyond
 that the ``scale-offset`` model is used when it is determined.
 """
 
@@ -30,14 +30,16 @@ import numpy as np
 
 from ofbe_data.freeliving.robust import MAX_CONDITION, RobustFit, fit_robust
 from ofbe_data.io.gravity import G0
-from ofbe_data.labelling.ladder import MAX_SCALE_LEAK_MG, scale_leak_mg, wald_test
 from ofbe_data.labelling.multiposition import (
+    MAX_SCALE_LEAK_MG,
     MIN_TEMPERATURE_SPAN_C,
     MODELS,
     TEMPERATURE,
     base_model,
     has_temperature,
     parameter_names,
+    scale_leak_mg,
+    wald_test,
 )
 
 ALPHA = 0.05

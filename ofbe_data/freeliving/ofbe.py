@@ -12,8 +12,8 @@ The steps (docs/free-living.md):
 4. the ladder (:func:`~ofbe_data.freeliving.ladder.choose_wear_model`): robust fits with
    cluster-robust standard errors, the model chosen by determination and Wald tests; a model
    the epochs do not determine at all is "sphere not populated" too, with the ladder's reason;
-5. the error after; a fit that does not lower it is not applied (identity coefficients), as in
-   GGIR.
+5. the error after; a fit that does not lower it (both rounded to 1e-5 g, as GGIR compares them)
+   is not applied (identity coefficients), as in GGIR.
 
 Coefficients, two conventions (:func:`coefficient_columns`)
     ofbe's own, as on the bench: raw = A·u + b + c·(T − τ₀) (u the unit gravity reaction, g),
@@ -34,9 +34,15 @@ import numpy as np
 
 from ofbe_data.freeliving.coverage import COVERAGE_DEG, coverage_words, missing_faces
 from ofbe_data.freeliving.epochs import EpochTable, idle_sleep
-from ofbe_data.freeliving.ggir import MAX_ABS_MEAN_G, MIN_STILL_EPOCHS, sphere_error, use_temperature
-from ofbe_data.freeliving.ladder import choose_wear_model
-from ofbe_data.freeliving.robust import norm_residuals
+from ofbe_data.freeliving.ggir import (
+    MAX_ABS_MEAN_G,
+    MIN_STILL_EPOCHS,
+    SettingsError,
+    sphere_error,
+    use_temperature,
+)
+from ofbe_data.freeliving.ladder import ALPHA, choose_wear_model
+from ofbe_data.freeliving.robust import MAX_CONDITION, norm_residuals
 from ofbe_data.labelling.conventions import derived_se
 from ofbe_data.labelling.multiposition import MODELS, PoseFit, base_model, has_temperature, map_from_params
 
@@ -72,7 +78,20 @@ class OfbeSettings:
     model
         ``auto`` (the ladder) or a model to force (``full+temperature`` …).
     coverage_deg
-        The coverage rule's cone, degrees.
+        The coverage rule's cone, degrees (above 0, at most 90).
+    exclude_idle
+        Leave idle epochs out (:func:`~ofbe_data.freeliving.epochs.idle_sleep`: standard
+        deviation 0, zero or repeated means); False keeps them, as GGIR does.
+    alpha
+        Significance level of the ladder's Wald tests (0 < alpha < 1): a richer model is taken
+        when p < alpha.
+    max_condition
+        Largest condition number of a model the ladder fits (at least 1).
+
+    Raises
+    ------
+    SettingsError
+        A setting out of its range (the message names it).
     """
 
     still_sd_g: float = 0.013
@@ -80,15 +99,26 @@ class OfbeSettings:
     sphere_check: bool = True
     model: str = "auto"
     coverage_deg: float = COVERAGE_DEG
+    exclude_idle: bool = True
+    alpha: float = ALPHA
+    max_condition: float = MAX_CONDITION
 
     def __post_init__(self) -> None:
-        for name in ("still_sd_g", "epoch_s", "coverage_deg"):
+        for name in ("still_sd_g", "epoch_s", "coverage_deg", "max_condition"):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
-                raise ValueError(f"OfbeSettings.{name}: expected a positive number, found {value!r}")
+                raise SettingsError("OfbeSettings", name, "a positive number", repr(value))
         if self.model != "auto" and self.model not in MODELS:
-            raise ValueError(f"OfbeSettings.model: expected auto or one of {', '.join(MODELS)}, "
-                             f"found {self.model!r}")
+            raise SettingsError("OfbeSettings", "model", f"auto or one of {', '.join(MODELS)}",
+                                repr(self.model))
+        if not self.coverage_deg <= 90:
+            raise SettingsError("OfbeSettings", "coverage_deg", "a number of degrees above 0 and at most 90",
+                                repr(self.coverage_deg))
+        if not (isinstance(self.alpha, int | float) and 0 < self.alpha < 1):
+            raise SettingsError("OfbeSettings", "alpha", "a number between 0 and 1", repr(self.alpha))
+        if not self.max_condition >= 1:
+            raise SettingsError("OfbeSettings", "max_condition", "a number >= 1 (a condition number)",
+                                repr(self.max_condition))
 
 
 @dataclass(frozen=True, eq=False)
@@ -237,7 +267,7 @@ def ofbe_calibrate(epochs: EpochTable, settings: OfbeSettings | None = None) -> 
     """
     s = settings or OfbeSettings()
     n = epochs.n
-    idle = idle_sleep(epochs)
+    idle = idle_sleep(epochs) if s.exclude_idle else np.zeros(n, dtype=bool)
     n_idle = int(idle.sum())
     means, sds = epochs.mean_g, epochs.sd_g
     still = ~idle & np.all(sds < s.still_sd_g, axis=1) & np.all(np.abs(means) < MAX_ABS_MEAN_G, axis=1)
@@ -267,7 +297,7 @@ def ofbe_calibrate(epochs: EpochTable, settings: OfbeSettings | None = None) -> 
     if s.sphere_check and missing:
         return outcome(f"{QC_OFBE_SPHERE}: {coverage_words(missing, s.coverage_deg)}", cal_error_start=start,
                        missing=missing)
-    choice = choose_wear_model(x, temps, s.model)
+    choice = choose_wear_model(x, temps, s.model, s.alpha, s.max_condition)
     fit = choice.fit.fit
     if not fit.determined:
         where = f"{coverage_words(missing, s.coverage_deg)}; " if missing else ""
@@ -279,7 +309,8 @@ def ofbe_calibrate(epochs: EpochTable, settings: OfbeSettings | None = None) -> 
     temp_mean = fit.temp_ref_c if has_temperature(fit.model) else None
     common: dict[str, object] = dict(model=fit.model, cal_error_start=start, cal_error_end=end,
                                      missing=missing, reason=choice.reason, fit=fit, weights=weights)
-    if not (math.isfinite(end) and round(end, 9) < round(start, 9)):
+    # compared at GGIR's resolution, 1e-5 g: a file already calibrated 'improves' by micrograms
+    if not (math.isfinite(end) and round(end, 5) < round(start, 5)):
         return outcome(f"{QC_OFBE_NOT_DECREASED} ({fit.model}: {start * 1000:.3f} mg before, "
                        f"{end * 1000:.3f} mg after)", **common)
     return outcome(f"{QC_OFBE_DONE}: {fit.model} model, error {start * 1000:.3f} -> {end * 1000:.3f} mg "

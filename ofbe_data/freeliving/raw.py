@@ -43,7 +43,7 @@ import numpy as np
 from ofbe_data.freeliving.blocks import BadBlock, RawFileError
 from ofbe_data.freeliving.epochs import EpochTable
 from ofbe_data.freeliving.wearables import Samples, local_iso, open_wearable, utc_iso
-from ofbe_data.io.detect_result import Hints
+from ofbe_data.io.detection import Hints
 
 GGIR_EPOCH_S = 10.0
 """GGIR's ``calibEpochSize``, s."""
@@ -133,6 +133,9 @@ class RawEpochs:
         Fewer than ``2 · 3600 · sf + 1`` samples: GGIR's "file too short" (with
         ``ggir_whole_hours`` the epochs are then none, and ``ggir_calibrate`` says "not enough
         data").
+    sha256
+        SHA-256 of the file's bytes (hex), computed while the file was read (no second pass for
+        ``.cwa``, ``.bin`` and ``.gt3x``; see :mod:`ofbe_data.freeliving.hashing`).
     """
 
     epochs: EpochTable
@@ -155,6 +158,7 @@ class RawEpochs:
     ggir_whole_hours: bool
     ggir_temperature_ok: bool | None
     ggir_too_short: bool
+    sha256: str | None = None
 
     @property
     def n_epochs(self) -> int:
@@ -331,8 +335,8 @@ def read_raw_epochs(path: str | Path, epoch_s: float = GGIR_EPOCH_S, *,
     Parameters
     ----------
     path
-        An Axivity ``.cwa``, GENEActiv ``.bin``, ActiGraph ``.gt3x`` (these two need actfast:
-        ``pip install 'ofbe[wearables]'``) or a csv of samples ofbe's generic reader reads.
+        An Axivity ``.cwa``, GENEActiv ``.bin``, ActiGraph ``.gt3x`` (each read in blocks by
+        ofbe's own readers) or a csv of samples ofbe's generic reader reads.
     epoch_s
         Epoch length, s (GGIR: 10); ``sample rate × epoch_s`` must be a whole number.
     ggir_whole_hours
@@ -354,8 +358,6 @@ def read_raw_epochs(path: str | Path, epoch_s: float = GGIR_EPOCH_S, *,
     RawFileError
         Not a file of those formats, or one its reader cannot read (the message names the file,
         and the byte offset where there is one).
-    MissingReaderError
-        A ``.bin`` or ``.gt3x`` file without actfast installed.
     RawFormatError, ManifestError, DetectionError
         A csv that the generic reader, its manifest or the detection refuse.
     OSError
@@ -390,4 +392,5 @@ def read_raw_epochs(path: str | Path, epoch_s: float = GGIR_EPOCH_S, *,
         imputed_samples=wearable.imputed_samples, bad_blocks=wearable.bad_blocks, idle_sleep=idle,
         epoch_s=float(epoch_s), ggir_whole_hours=ggir_whole_hours,
         ggir_temperature_ok=maker.temp_check.ok() if info.has_temperature else None, ggir_too_short=too_short,
+        sha256=wearable.sha256,
     )

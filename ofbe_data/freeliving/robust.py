@@ -1,6 +1,6 @@
 """A robust fit of one model of ofbe's calibration ladder to a recording's still epochs.
 
-A still epoch is a pose (:mod:`ofbe_data.labelling.multiposition`): its mean m_k (g, raw
+A still epoch is a pose (:mod:`ofbe_data.labelling.multiposition._fit`): its mean m_k (g, raw
 axes) satisfies, with the device's map A = (T·K)⁻¹, its offset b and the offset's drift c per
 °C about the reference temperature τ₀,
 
@@ -24,14 +24,14 @@ Standard errors (jackknife over postures)
     Consecutive still epochs in one orientation (a night on one side, an hour at a desk)
     share what is wrong with them (the strap, the posture, a slow drift), so they are not
     independent. They form a *posture*
-    (:func:`~ofbe_data.labelling.pose_errors.pose_clusters`: consecutive epochs within 5°),
+    (:func:`~ofbe_data.labelling.multiposition.pose_clusters`: consecutive epochs within 5°),
     and the covariance is the one-step jackknife of the M-estimate over postures
     (:func:`jackknife_covariance`; the cluster-robust "CR3" sandwich): leave each posture out,
     move the estimate by one Newton step, and take the spread of the moves. The plain
     cluster sandwich (CR1) is biased low with few postures: on simulated wear with 50 postures
     of 3–30 epochs and 12 parameters its normalised errors had a standard deviation of 1.19
     (2.2 with 25), the jackknife's 0.88 (0.75 with 25; 0.98 with 150). The labelling's pose-error model
-    (:mod:`ofbe_data.labelling.pose_errors`) builds n × n matrices, out of reach for the
+    (:mod:`ofbe_data.labelling.multiposition._errors`) builds n × n matrices, out of reach for the
     10⁴–10⁵ epochs of a week, and the jackknife needs no model of the errors at all. A model
     is determined only with more postures than parameters
     (:func:`~ofbe_data.labelling.multiposition.min_poses`, postures for poses) and a condition
@@ -52,10 +52,10 @@ from ofbe_data.labelling.multiposition import (
     map_from_params,
     min_poses,
     n_unknowns,
+    pose_clusters,
     residual_jacobian,
     span_condition,
 )
-from ofbe_data.labelling.pose_errors import pose_clusters
 
 HUBER_C = 1.345
 """Huber's tuning constant (95 % efficiency under Gaussian errors)."""

@@ -1,17 +1,23 @@
 """One reader per wearable format, each a stream of samples in g with what the file says of its device.
 
+Every reader below reads its file in blocks (memory bounded whatever the file's length) and once:
+the file's SHA-256 (:attr:`Wearable.sha256`) comes from the bytes the reader reads
+(:mod:`ofbe_data.freeliving.hashing`), not from a second pass.
+
 - Axivity ``.cwa``: ofbe's own block reader, resampled as GGIRread does
   (:mod:`ofbe_data.freeliving.axivity`); bad blocks are named and imputed as GGIR imputes them.
-- GENEActiv ``.bin`` and ActiGraph ``.gt3x``: the ``actfast`` package (MIT; an optional extra,
-  ``pip install 'ofbe[wearables]'``), which reads the whole file at once. GENEActiv samples are
-  the calibrated values GGIRread's reader gives (``(raw·100 − offset) / gain``, float32), each
-  with the temperature of its page; ActiGraph samples are rounded to 1 mg half away from zero, as
-  GGIR's ``read.gt3x`` gives them, and have no temperature. Time-stamp gaps (ActiGraph's
-  idle-sleep mode writes no samples while asleep) are counted and, as in GGIR, closed up.
+- GENEActiv ``.bin``: ofbe's own page reader (:mod:`ofbe_data.freeliving.geneactiv`): the
+  calibrated values GGIRread's and actfast's readers give (``(raw·100 − offset) / gain``,
+  float32), each with the temperature of its page; a damaged page is named.
+- ActiGraph ``.gt3x``: ofbe's own record reader (:mod:`ofbe_data.freeliving.actigraph`), through
+  the zip member: samples rounded to 1 mg half away from zero, as GGIR's ``read.gt3x`` gives them,
+  without temperature; a record failing its checksum is named and skipped. Time-stamp gaps
+  (ActiGraph's idle-sleep mode writes no samples while asleep) are counted and, as in GGIR,
+  closed up.
 - csv: any file ofbe's generic reader reads, through the ``session.yaml`` that names it (in its
   folder or up to three folders above) or, without one, ``ofbe-session init``'s detection; the
   samples as read (m/s² back to g with g0 = 9.80665 m/s², raw-formats.md), at the manifest's or
-  the measured rate.
+  the measured rate. (The generic reader reads the whole file; its hash is a second pass.)
 """
 
 from __future__ import annotations
@@ -22,50 +28,33 @@ from abc import ABC, abstractmethod
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
-from ofbe_data.core.errors import OfbeError
+from ofbe_data.core.checksums import file_sha256
+from ofbe_data.freeliving.actigraph import Gt3xStream, round_half_away
 from ofbe_data.freeliving.axivity import AxivityStream
 from ofbe_data.freeliving.blocks import BadBlock, RawFileError
 from ofbe_data.freeliving.epochs import is_epoch_csv
-from ofbe_data.io.detect import sniff_text
-from ofbe_data.io.detect_result import Hints
+from ofbe_data.freeliving.geneactiv import BinStream
+from ofbe_data.freeliving.hashing import HashingReader
+from ofbe_data.io.detection import Hints, sniff_text
 from ofbe_data.io.formats import read_device_file
 from ofbe_data.io.gravity import G0
 from ofbe_data.io.manifest import MANIFEST_NAME, DeviceSpec, load_manifest
 from ofbe_data.io.recording import TEMPERATURE
 
 CWA_FORMAT, BIN_FORMAT, GT3X_FORMAT, CSV_FORMAT = "Axivity CWA", "GENEActiv BIN", "ActiGraph GT3X", "csv"
-ACTFAST_FORMATS = {".bin": BIN_FORMAT, ".gt3x": GT3X_FORMAT}
-"""The formats read through actfast, by file suffix."""
 RAW_SUFFIXES = (".cwa", ".bin", ".gt3x", ".csv")
 """Suffixes :func:`open_wearable` takes (case ignored)."""
 CHUNK_SAMPLES = 1 << 18
-"""Samples handed on at a time from a file read whole."""
-GT3X_DECIMALS = 3
-"""GGIR's ``read.gt3x`` gives ActiGraph samples rounded to 1 mg."""
+"""Samples handed on at a time from a file read whole (csv)."""
 MANIFEST_LEVELS = 3
 """Folders above a csv searched for the ``session.yaml`` that names it."""
-INSTALL_HINT = "pip install 'ofbe[wearables]'"
 
-
-class MissingReaderError(OfbeError):
-    """A raw file needs an optional package that is not installed.
-
-    Parameters
-    ----------
-    path
-        The file.
-    fmt
-        Its format.
-    """
-
-    def __init__(self, path: str | Path, fmt: str) -> None:
-        self.path = Path(path)
-        super().__init__(f"{path}: reading a {fmt} file needs the actfast package, which is not installed; "
-                         f"install it with: {INSTALL_HINT}")
+__all__ = ["BIN_FORMAT", "CSV_FORMAT", "CWA_FORMAT", "GT3X_FORMAT", "RAW_SUFFIXES", "BinWearable",
+           "CsvWearable", "CwaWearable", "DeviceInfo", "Gt3xWearable", "Samples",
+           "Wearable", "local_iso", "open_wearable", "round_half_away", "utc_iso"]
 
 
 @dataclass(frozen=True)
@@ -122,7 +111,8 @@ class Wearable(ABC):
     """A wearable file open for reading: :attr:`info`, then :meth:`chunks` once.
 
     After the chunks are read, :attr:`bad_blocks`, :attr:`imputed_samples`, :attr:`gap_stretches`
-    and :attr:`gap_samples` say what was skipped, filled in or missing.
+    and :attr:`gap_samples` say what was skipped, filled in or missing, and :attr:`sha256` is the
+    file's SHA-256 (hex), from the same reading where the format allows.
     """
 
     exact_rate = True
@@ -136,6 +126,7 @@ class Wearable(ABC):
         self.imputed_samples = 0
         self.gap_stretches = 0
         self.gap_samples = 0
+        self.sha256: str | None = None
 
     @abstractmethod
     def chunks(self) -> Iterator[Samples]:
@@ -166,14 +157,7 @@ class CwaWearable(Wearable):
             yield Samples(c.time_s, acc, c.temperature_c)
         self.bad_blocks = self.stream.bad_blocks
         self.imputed_samples = self.stream.imputed_rows
-
-
-def _actfast() -> Any:
-    try:
-        import actfast
-    except ImportError:
-        return None
-    return actfast
+        self.sha256 = self.stream.sha256 or file_sha256(self.path)
 
 
 def _number(text: str | None) -> float | None:
@@ -191,77 +175,106 @@ def _offset_s(text: str | None) -> float | None:
     return sign * (int(m.group(2)) * 3600 + int(m.group(3)) * 60 + int(m.group(4) or 0))
 
 
-def round_half_away(x: np.ndarray, decimals: int) -> np.ndarray:
-    """Round to ``decimals`` places, halves away from zero (C's ``round``, as ``read.gt3x``)."""
-    scale = 10.0**decimals
-    return np.sign(x) * np.floor(np.abs(x) * scale + 0.5) / scale
+class _HashedFile:
+    """A file open through a :class:`HashingReader` until its samples are read (or its reader fails)."""
+
+    def __init__(self, path: Path) -> None:
+        self._raw = open(path, "rb")  # noqa: SIM115 - closed by close(), after the last chunk
+        self.reader = HashingReader(self._raw)
+
+    def finish(self) -> str:
+        """The file's SHA-256 (what the reader did not take is read now), and close it."""
+        try:
+            return self.reader.hexdigest()
+        finally:
+            self.close()
+
+    def close(self) -> None:
+        self._raw.close()
 
 
-class ActfastWearable(Wearable):
-    """A GENEActiv ``.bin`` or ActiGraph ``.gt3x`` file, read whole through actfast.
+class BinWearable(Wearable):
+    """A GENEActiv ``.bin`` file, page by page (:mod:`ofbe_data.freeliving.geneactiv`).
 
     Raises
     ------
-    MissingReaderError
-        actfast is not installed.
     RawFileError
-        actfast cannot read the file, or it holds no acceleration.
+        Not a GENEActiv file, a header without calibration or sample rate, or (while reading) a
+        page out of the page layout.
     """
 
-    def __init__(self, path: Path, fmt: str) -> None:
-        reader = _actfast()
-        if reader is None:
-            raise MissingReaderError(path, fmt)
+    def __init__(self, path: Path) -> None:
+        self._file = _HashedFile(path)
         try:
-            data = reader.read(str(path))
-        except (ValueError, RuntimeError) as exc:
-            raise RawFileError(path, f"a readable {fmt} file", f"{exc}") from None
-        meta: dict[str, dict[str, str]] = data.get("metadata", {})
-        series = data.get("timeseries", {})
-        if fmt == BIN_FORMAT:
-            high, low = series.get("high_frequency", {}), series.get("low_frequency", {})
-            ident, caps = meta.get("Device Identity", {}), meta.get("Device Capabilities", {})
-            conf = meta.get("Configuration Info", {})
-            rate = _number(conf.get("Measurement Frequency"))
-            device = f"GENEActiv {ident.get('Device Model', '')}".strip()
-            serial, rng = ident.get("Device Unique Serial Code"), _number(caps.get("Accelerometer Range"))
-            offset = _offset_s(conf.get("Time Zone"))
-            self._temp = (low.get("datetime"), low.get("temperature"))
-        else:
-            high = series.get("acceleration", {})
-            info = meta.get("info", {})
-            rate = _number(info.get("Sample Rate"))
-            device = f"ActiGraph {info.get('Device Type', '')}".strip()
-            serial, rng, offset = info.get("Serial Number"), _number(info.get("Acceleration Max")), \
-                _offset_s(info.get("TimeZone"))
-            self._temp = (None, None)
-        acc, when = high.get("acceleration"), high.get("datetime")
-        if acc is None or when is None or len(acc) == 0:
-            raise RawFileError(path, f"acceleration samples in a {fmt} file", "none")
+            self._stream = BinStream(path, self._file.reader)
+        except BaseException:
+            self._file.close()
+            raise
+        meta = self._stream.header.metadata
+        ident, caps = meta.get("Device Identity", {}), meta.get("Device Capabilities", {})
+        conf = meta.get("Configuration Info", {})
+        rate = _number(conf.get("Measurement Frequency"))
         if rate is None or not rate > 0:
-            raise RawFileError(path, "the sample rate in the file's header", "none")
-        self._acc, self._when = acc, when
-        has_temp = self._temp[1] is not None and len(self._temp[1]) > 0
-        super().__init__(path, DeviceInfo(fmt, device, serial, float(rate), None if rng is None else abs(rng),
-                                          offset, has_temp))
+            self._file.close()
+            raise RawFileError(path, "a 'Measurement Frequency' under 'Configuration Info' in the header",
+                               "none")
+        rng = _number(caps.get("Accelerometer Range"))
+        device = f"GENEActiv {ident.get('Device Model', '').strip()}".strip()
+        super().__init__(path, DeviceInfo(BIN_FORMAT, device, ident.get("Device Unique Serial Code"),
+                                          float(rate), None if rng is None else abs(rng),
+                                          _offset_s(conf.get("Time Zone")), True))
 
     def chunks(self) -> Iterator[Samples]:
         before: float | None = None
-        page_t, page_temp = self._temp
-        for a in range(0, len(self._acc), CHUNK_SAMPLES):
-            b = min(a + CHUNK_SAMPLES, len(self._acc))
-            t = self._when[a:b].astype(np.float64) / 1e9
-            acc = np.ascontiguousarray(self._acc[a:b].T, dtype=np.float64)
-            if self.info.format == GT3X_FORMAT:
-                acc = round_half_away(acc, GT3X_DECIMALS)
-            temp = None
-            if self.info.has_temperature and page_t is not None and page_temp is not None:
-                page = np.clip(np.searchsorted(page_t, self._when[a:b], side="right") - 1, 0, len(page_t) - 1)
-                temp = page_temp[page].astype(np.float64)
-            self._count_gaps(t, before)
-            before = float(t[-1])
-            yield Samples(t, acc, temp)
-        self._acc = self._when = np.zeros(0)  # let the whole-file arrays go
+        try:
+            for c in self._stream:
+                t = c.time_ns.astype(np.float64) / 1e9
+                self._count_gaps(t, before)
+                before = float(t[-1])
+                yield Samples(t, c.acc_g.astype(np.float64), c.temperature_c.astype(np.float64))
+            self.sha256 = self._file.finish()
+        finally:
+            self._file.close()
+            self.bad_blocks = tuple(self._stream.bad_pages)
+
+
+class Gt3xWearable(Wearable):
+    """An ActiGraph ``.gt3x`` file, record by record (:mod:`ofbe_data.freeliving.actigraph`).
+
+    Raises
+    ------
+    RawFileError
+        Not a zip archive with ``info.txt`` and ``log.bin`` (an older NHANES-style file is refused
+        with that reason), no whole sample rate, or (while reading) a damaged ``log.bin``.
+    """
+
+    def __init__(self, path: Path) -> None:
+        self._file = _HashedFile(path)
+        try:
+            self._stream = Gt3xStream(path, self._file.reader)
+        except BaseException:
+            self._file.close()
+            raise
+        info = self._stream.info
+        device = f"ActiGraph {info.get('Device Type', '')}".strip()
+        rng = _number(info.get("Acceleration Max"))
+        rate = float(self._stream.sample_rate_hz)
+        super().__init__(path, DeviceInfo(GT3X_FORMAT, device, info.get("Serial Number"), rate,
+                                          None if rng is None else abs(rng), _offset_s(info.get("TimeZone")),
+                                          False))
+
+    def chunks(self) -> Iterator[Samples]:
+        before: float | None = None
+        try:
+            for c in self._stream:
+                t = c.time_ns.astype(np.float64) / 1e9
+                self._count_gaps(t, before)
+                before = float(t[-1])
+                yield Samples(t, c.acc_g, None)
+            self.sha256 = self._file.finish()
+        finally:
+            self._file.close()
+            self.bad_blocks = tuple(self._stream.bad_records)
 
 
 class CsvWearable(Wearable):
@@ -297,6 +310,7 @@ class CsvWearable(Wearable):
                                           self._temp is not None), absolute)
         self.gap_stretches = len(rec.diagnostics.gaps)
         self.gap_samples = int(rec.diagnostics.missing_samples)
+        self.sha256 = file_sha256(path)
 
     def chunks(self) -> Iterator[Samples]:
         for a in range(0, len(self._t), CHUNK_SAMPLES):
@@ -330,15 +344,15 @@ def open_wearable(path: str | Path, hints: Hints | None = None) -> Wearable:
     ------
     RawFileError
         An unknown suffix, or a file its reader cannot read.
-    MissingReaderError
-        A ``.bin`` or ``.gt3x`` file without actfast installed.
     """
     p = Path(path)
     suffix = p.suffix.lower()
     if suffix == ".cwa":
         return CwaWearable(p)
-    if suffix in ACTFAST_FORMATS:
-        return ActfastWearable(p, ACTFAST_FORMATS[suffix])
+    if suffix == ".bin":
+        return BinWearable(p)
+    if suffix == ".gt3x":
+        return Gt3xWearable(p)
     if suffix == ".csv":
         return CsvWearable(p, hints)
     raise RawFileError(p, f"a raw wearable file ({', '.join(RAW_SUFFIXES)})",

@@ -34,7 +34,9 @@ a device with a diagonal A onto the unit sphere with (:func:`ggir_coefficients`)
     temp_offset_G = −temp_coeff · scale_G        g/°C
     offset_G      = −(offset + temp_coeff · (T̄ − temp_ref_c))   g
 
-where T̄ is GGIR's ``meantempcal`` (the mean temperature of its still epochs). Put the first two into
+where T̄ is GGIR's ``meantempcal`` (the mean temperature of its still epochs). ofbe-autocal's own map
+(``raw = A'·u + b + c·(T − T̄)``, |u| = 1 at rest) is likewise A' = g_r·A: a calibration from still
+epochs takes local gravity as its unit. Put the first two into
 the model and the terms in T cancel; what is left is u. With non-orthogonality (A not diagonal) GGIR's
 model is only a first-order approximation.
 """
@@ -129,6 +131,19 @@ def draw_sensor(model: DutModel, fl: FreeLivingConfig, g_ratio: float,
     density = np.asarray(fl.noise_density_ug, dtype=np.float64)
     return WearSensor(scale, nonorth, sensor_matrix(scale, nonorth), offset, coeff, fl.temp_ref_c, density,
                       noise_rms_g(density, fl.rate_hz), g_ratio)
+
+
+def already_calibrated(sensor: WearSensor) -> WearSensor:
+    """The device of the ``already-calibrated`` scenario: its readings were calibrated before.
+
+    A = I / g_r (scale = 1/g_r − 1, no non-orthogonality), so that it reads exactly 1 at rest,
+    the unit of a still-epoch calibration (local gravity); no offset, no temperature slope. The
+    noise is ``sensor``'s.
+    """
+    scale = np.full(3, 1.0 / sensor.g_ratio - 1.0)
+    zero = np.zeros(3)
+    return WearSensor(scale, zero, sensor_matrix(scale, zero), zero.copy(), zero.copy(), sensor.temp_ref_c,
+                      sensor.noise_density_ug, sensor.noise_g, sensor.g_ratio)
 
 
 def expected_means(sensor: WearSensor, plan: WearPlan) -> np.ndarray:

@@ -125,6 +125,10 @@ WAKE_H = (7.0, 0.75, 5.0, 9.5)
 MICRO_MOTION_G = {SIT: 0.003, STAND: 0.004, SLEEP: 0.002, NONWEAR: 0.0}
 """Motion of a still epoch, g rms per axis (breathing, pulse, tremor); none off the body."""
 MIN_MOTION_G = 0.025
+NO_STILL_MOTION_G = 0.02
+"""Least motion of every epoch on the body in a device that never rests (``tremor_g`` of
+:func:`draw_plan`, the ``no-still`` scenario), g rms per axis: an epoch's standard deviation stays
+above GGIR's 13 mg (by more than 10 of its own standard errors at 300 samples)."""
 """Least motion of a moving epoch, g rms per axis: its sd stays well above GGIR's 13 mg."""
 SHIFT_MOTION_G = (0.03, 0.15)
 """Motion of an epoch of posture shifting, turning over or taking the device off, g (uniform)."""
@@ -394,7 +398,7 @@ def temperature(state: np.ndarray, epoch_s: float, start_hour: float) -> np.ndar
 
 
 def draw_plan(placement: str, n: int, epoch_s: float, start_hour: float, *, idle_sleep: bool = False,
-              nonwear_per_day: float = 1.0, nonwear_night_prob: float = 0.1,
+              nonwear_per_day: float = 1.0, nonwear_night_prob: float = 0.1, tremor_g: float = 0.0,
               rng: np.random.Generator) -> WearPlan:
     """Draw what the wearer does in each of ``n`` epochs.
 
@@ -414,6 +418,9 @@ def draw_plan(placement: str, n: int, epoch_s: float, start_hour: float, *, idle
         Mean non-wear periods per 16 h awake.
     nonwear_night_prob
         Probability that a night is spent off the body.
+    tremor_g
+        When above 0, every epoch on the body moves with at least this motion (g rms per axis) and
+        is not still (the ``no-still`` scenario); no draw depends on it.
     rng
         Random generator: the nights, then the days and nights in time order, then the non-wear
         periods of the waking intervals, then one draw per night.
@@ -442,6 +449,10 @@ def draw_plan(placement: str, n: int, epoch_s: float, start_hour: float, *, idle
     for lo, hi in nights:
         if float(rng.random()) < nonwear_night_prob:
             b.nonwear(lo, hi)
+    if tremor_g > 0.0:
+        on_body = b.state != NONWEAR
+        b.motion[on_body] = np.maximum(b.motion[on_body], tremor_g)
+        b.still[on_body] = False
     idle = np.zeros(n, dtype=bool)
     if idle_sleep:
         idle[1:] = b.still[1:] & b.still[:-1] & (b.spell[1:] == b.spell[:-1])

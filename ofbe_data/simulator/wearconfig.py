@@ -13,7 +13,7 @@ bench logger's clock, serial link, drift and turn-on spread) and ``duts``, ``til
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from ofbe_data.core.errors import ConfigError
 
@@ -27,6 +27,18 @@ PLACEMENTS = ("wrist", "hip")
 """Where the device is worn."""
 MAX_DAYS = 31.0
 """Longest wear per file, days."""
+SCENARIOS = ("no-still", "poor-coverage", "idle-sleep", "already-calibrated")
+"""Files that test a calibration's QC outcomes, written after the ordinary ones in this order:
+
+- ``no-still``: the device never rests: worn day and night, never taken off, with at least
+  :data:`~ofbe_data.simulator.wear.NO_STILL_MOTION_G` of motion in every epoch (a tremor that
+  persists, a vehicle), so no epoch's standard deviation falls below GGIR's 13 mg;
+- ``poor-coverage``: a hip device worn day and night and never taken off: its −x axis (upside
+  down) never points up;
+- ``idle-sleep``: ActiGraph's idle-sleep mode on (``idle_sleep``);
+- ``already-calibrated``: the file holds readings already calibrated (by the maker, or an earlier
+  run): A = I in the convention of a still-epoch calibration (a reading of 1 at rest, local
+  gravity), no offset, no temperature slope; a calibration has nothing to remove."""
 MAX_SAMPLES_PER_EPOCH = 6000
 """Most raw samples in one epoch (``epoch_s · rate_hz``): 60 s at 100 Hz. Epoch statistics of raw
 samples are summed in 64-bit integers, exact up to this many samples."""
@@ -67,6 +79,9 @@ class FreeLivingConfig:
         Mean number of non-wear periods (device on a table, 10–120 min) per waking day.
     nonwear_night_prob
         Probability that the device spends a night on the table instead of on the sleeper.
+    scenarios
+        Files of each of :data:`SCENARIOS` (name → count), written after the ordinary files and
+        counted in ``sessions``.
     """
 
     placement: str = "wrist"
@@ -80,6 +95,7 @@ class FreeLivingConfig:
     idle_sleep: bool = False
     nonwear_per_day: float = 1.0
     nonwear_night_prob: float = 0.1
+    scenarios: dict[str, int] = field(default_factory=dict)
 
     @property
     def samples_per_epoch(self) -> int:
@@ -134,3 +150,35 @@ def check_free_living(fl: FreeLivingConfig, source: str) -> None:
     if not 0.0 <= fl.nonwear_night_prob <= 1.0:
         raise ConfigError(source, key + "nonwear_night_prob", "a probability in [0, 1]",
                           repr(fl.nonwear_night_prob))
+    for name, count in fl.scenarios.items():
+        if name not in SCENARIOS:
+            raise ConfigError(source, key + "scenarios", "scenario names among " + ", ".join(SCENARIOS),
+                              repr(name))
+        if not (isinstance(count, int) and count >= 0):
+            raise ConfigError(source, f"{key}scenarios.{name}", "a number of files >= 0", repr(count))
+
+
+def scenario_of(fl: FreeLivingConfig, sessions: int, index: int, source: str = "<config>") -> str | None:
+    """The scenario of file ``index`` (0-based) of ``sessions``: None for an ordinary file.
+
+    The last ``sum(fl.scenarios.values())`` files are the scenarios' files, in the order of
+    :data:`SCENARIOS`.
+
+    Raises
+    ------
+    ConfigError
+        The scenarios ask for more files than ``sessions``.
+    """
+    counts = [(name, fl.scenarios.get(name, 0)) for name in SCENARIOS]
+    total = sum(c for _, c in counts)
+    if total > sessions:
+        raise ConfigError(source, "free_living.scenarios",
+                          f"at most sessions = {sessions} files in all (counts of 0 for none)", f"{total}")
+    k = index - (sessions - total)
+    if k < 0:
+        return None
+    for name, count in counts:
+        if k < count:
+            return name
+        k -= count
+    raise IndexError(f"file index {index} out of range for {sessions} files")

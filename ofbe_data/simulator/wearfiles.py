@@ -6,7 +6,7 @@ of the first two are written)::
     epochs/<file>.csv                     one row per epoch: meanx,meany,meanz,sdx,sdy,sdz,temperature
     <file>/session.yaml                   a session of one recording, generic csv (raw-formats.md)
     <file>/rec-01/<file>.csv              t (Unix s), ax, ay, az (g), temperature (°C)
-    _truth/<file>.json                    the device's truth, GGIR's coefficients, epoch counts
+    _truth/<file>.json                    the device's truth (in three conventions), scenario, epoch counts
     _truth/<file>.segments.csv            the wearer's spells: state, epochs, gravity direction
     _truth/simulation.yaml                seed and resolved configuration
 
@@ -14,6 +14,17 @@ With ``output: both`` the epoch file holds the epochs of the raw file (computed 
 the written samples); with ``epochs`` they are drawn directly from their distributions
 (:func:`~ofbe_data.simulator.freeliving.draw_epochs`). The device and the plan are the same in every
 mode.
+
+The truth of a device in three conventions: ``sensor``, the sensor model of docs/sensor-model.md
+(readings in g are m/s² ÷ g0, raw-formats.md, of a specific force of g_local, so an ideal device
+at rest reads g_local/g0, 0.99885 g at the default site); ``autocal``, the convention of
+``ofbe-autocal``'s summary (``a_xx`` …, ``ofbe_offset_*``, ``ofbe_temp_slope_*``), whose unit is
+local gravity: a calibration from still epochs alone knows no site and makes the reading 1 at
+rest, so its A is g_local/g0 · the sensor's A, its offset and slope the sensor's; and ``ggir``,
+GGIR's coefficients, which carry the same factor. Compare a summary with ``autocal`` or ``ggir``.
+The last files may be QC scenarios (``free_living.scenarios``,
+:data:`~ofbe_data.simulator.wearconfig.SCENARIOS`): the truth names the file's ``scenario`` and the
+signed axes its still epochs never point within 45° of (``unseen_faces``).
 
 Seeding follows the bench campaigns': file i (0-based) draws from the child ``spawn_key = (i + 1,)``
 of ``SeedSequence(seed)``, split into ``(i + 1, 0)`` for the device, ``(i + 1, 1)`` for the plan and
@@ -25,6 +36,7 @@ from __future__ import annotations
 
 import io
 import json
+import math
 import os
 from dataclasses import dataclass
 from datetime import UTC, datetime, timedelta
@@ -50,14 +62,15 @@ from ofbe_data.simulator.freeliving import (
     RAW_TEMP_DECIMALS,
     EpochStats,
     WearSensor,
+    already_calibrated,
     draw_epochs,
     draw_sensor,
     epoch_stats,
     ggir_coefficients,
     raw_samples,
 )
-from ofbe_data.simulator.wear import WearPlan, draw_plan
-from ofbe_data.simulator.wearconfig import FREE_LIVING, FreeLivingConfig
+from ofbe_data.simulator.wear import NO_STILL_MOTION_G, WearPlan, draw_plan
+from ofbe_data.simulator.wearconfig import FREE_LIVING, FreeLivingConfig, scenario_of
 
 EPOCH_HEADER = "meanx,meany,meanz,sdx,sdy,sdz,temperature"
 """The epoch csv's columns: GGIR's ``spheredata`` layout."""
@@ -107,12 +120,13 @@ def start_of(cfg: SimConfig) -> tuple[datetime, float]:
 
 @dataclass(frozen=True, eq=False)
 class WearFile:
-    """One simulated file before its samples: name, device truth and plan."""
+    """One simulated file before its samples: name, device truth, plan and scenario (None: ordinary)."""
 
     name: str
     sensor: WearSensor
     plan: WearPlan
     g_local: float
+    scenario: str | None = None
 
 
 def simulate_wear_file(cfg: SimConfig, index: int, seed: int | None = None) -> WearFile:
@@ -132,13 +146,43 @@ def simulate_wear_file(cfg: SimConfig, index: int, seed: int | None = None) -> W
     WearFile
     """
     fl = settings(cfg)
+    scenario = scenario_of(fl, cfg.sessions, index)
     dev_seq, plan_seq, _ = file_seeds(cfg.seed if seed is None else seed, index)
     g_local = site_of(cfg).g_local
     sensor = draw_sensor(cfg.dut_model, fl, g_local / G0, np.random.default_rng(dev_seq))
-    plan = draw_plan(fl.placement, fl.n_epochs, fl.epoch_s, start_of(cfg)[1], idle_sleep=fl.idle_sleep,
-                     nonwear_per_day=fl.nonwear_per_day, nonwear_night_prob=fl.nonwear_night_prob,
+    if scenario == "already-calibrated":
+        sensor = already_calibrated(sensor)
+    placement, idle, per_day, night, tremor = (fl.placement, fl.idle_sleep, fl.nonwear_per_day,
+                                               fl.nonwear_night_prob, 0.0)
+    if scenario in ("no-still", "poor-coverage"):  # worn day and night, never taken off
+        per_day, night = 0.0, 0.0
+    if scenario == "no-still":
+        tremor = NO_STILL_MOTION_G
+    elif scenario == "poor-coverage":
+        placement = "hip"
+    elif scenario == "idle-sleep":
+        idle = True
+    plan = draw_plan(placement, fl.n_epochs, fl.epoch_s, start_of(cfg)[1], idle_sleep=idle,
+                     nonwear_per_day=per_day, nonwear_night_prob=night, tremor_g=tremor,
                      rng=np.random.default_rng(plan_seq))
-    return WearFile(file_name(cfg, index), sensor, plan, g_local)
+    return WearFile(file_name(cfg, index), sensor, plan, g_local, scenario)
+
+
+COVERAGE_COS = math.cos(math.radians(45.0))
+"""A signed axis is seen when a still epoch's gravity direction is within 45° of it (ofbe-autocal's
+coverage rule, docs/free-living.md)."""
+
+
+def unseen_faces(plan: WearPlan) -> list[str]:
+    """Signed axes (``+x`` … ``-z``, in that order) that no still, non-idle epoch of the plan points
+    within 45° of: what ``ofbe-autocal``'s coverage rule should name."""
+    u = plan.u[plan.still & ~plan.idle]
+    out = []
+    for k, axis in enumerate("xyz"):
+        for sign, word in ((1.0, "+"), (-1.0, "-")):
+            if not (u.shape[0] and float(np.max(sign * u[:, k])) > COVERAGE_COS):
+                out.append(word + axis)
+    return out
 
 
 def simulate_wear_epochs(cfg: SimConfig, wear: WearFile, index: int, seed: int | None = None) -> EpochStats:
@@ -228,9 +272,11 @@ def truth_of(cfg: SimConfig, wear: WearFile, campaign: str) -> dict[str, Any]:
                "segments": f"_truth/{wear.name}.segments.csv"}
     return {
         "format": TRUTH_FORMAT, "campaign": campaign, "file": wear.name, "kind": FREE_LIVING,
-        "device": wear.name, "placement": fl.placement, "start_utc": cfg.start_utc, "days": fl.days,
+        "scenario": wear.scenario, "unseen_faces": unseen_faces(wear.plan),
+        "device": wear.name, "placement": wear.plan.placement, "start_utc": cfg.start_utc, "days": fl.days,
         "epoch_s": fl.epoch_s, "epochs": wear.plan.n, "rate_hz": fl.rate_hz,
-        "samples_per_epoch": fl.samples_per_epoch, "idle_sleep": fl.idle_sleep, "outputs": outputs,
+        "samples_per_epoch": fl.samples_per_epoch,
+        "idle_sleep": fl.idle_sleep or wear.scenario == "idle-sleep", "outputs": outputs,
         "g_local": wear.g_local, "g_local_in_g0": s.g_ratio,
         "sensor_model": "reading (g) = A . (g_local/g0 . rho . u + motion) + offset + temp_coeff . "
                         "(T - temp_ref_c) + noise; A = (I + diag(scale)) . T(nonorthogonality_rad), "
@@ -240,6 +286,14 @@ def truth_of(cfg: SimConfig, wear: WearFile, campaign: str) -> dict[str, Any]:
             "nonorthogonality_rad": s.nonorth_rad.tolist(), "A": s.A.tolist(),
             "temp_coeff_mg_per_c": (s.temp_coeff_g_per_c * 1e3).tolist(), "temp_ref_c": s.temp_ref_c,
             "noise_density_ug": s.noise_density_ug.tolist(), "noise_rms_mg": (s.noise_g * 1e3).tolist(),
+        },
+        "autocal": {
+            "model": "raw = A . u + b + c . (T - temp_mean_c), |u| = 1 at rest (ofbe-autocal's summary: "
+                     "a_xx..a_zz, ofbe_offset_*, ofbe_temp_slope_*); 1 = local gravity, so A = "
+                     "g_local/g0 . sensor.A",
+            "A": (s.g_ratio * s.A).tolist(), "offset_at_temp_ref_g": s.offset_g.tolist(),
+            "temp_slope_g_per_c": s.temp_coeff_g_per_c.tolist(),
+            "offset_rule": "b = offset_at_temp_ref_g + temp_slope_g_per_c . (temp_mean_c - temp_ref_c)",
         },
         "ggir": {
             "model": "calibrated = (raw + offset) . scale + (T - temp_mean_c) . temp_offset",
@@ -316,6 +370,7 @@ def write_free_living(cfg: SimConfig, out: Path, seed: int, campaign: str, *, jo
     files, bytes
         Files written (truth included) and their size.
     """
+    scenario_of(settings(cfg), cfg.sessions, 0)  # too many scenario files: a ConfigError before any work
     with atomic_directory(out, replace=force) as tmp:
         (tmp / "_truth").mkdir()
         if settings(cfg).output != "raw":
