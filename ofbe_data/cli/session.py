@@ -1,13 +1,13 @@
 """``ofbe-session``: write a session's manifest from its files (``init``), and check a session
 before labelling it (``check``).
 
-``init DIR`` detects each file's format, columns, units and rate (:mod:`ofbe_data.io.detect`),
+``init DIR`` detects each file's format, columns, units and rate (:mod:`ofbe_data.io.detection`),
 prints every decision with its evidence (the rate as ``check`` reports it), and writes
 ``DIR/session.yaml`` with the evidence as YAML comments beside the keys. A file with two
 accelerometer triads gives two devices naming it; ``power_cycle`` comes only from an explicit
 pattern of the folder's name (``pc3``…), else 1 with a warning. A case the files do not settle
-stops with the flag to give. The manifest's pieces (files, devices, recordings, the YAML with
-its evidence) are in :mod:`ofbe_data.cli.session_init`.
+stops with the flag to give. The folder's files, devices and recordings are found by
+:mod:`ofbe_data.io.detection`; the YAML with its evidence is :mod:`ofbe_data.cli.session_init`'s.
 
 ``check DIR...`` validates each session, reads every file and runs labelling in memory (nothing
 is written, the raw folder is never touched), and prints per file what was found and what
@@ -31,24 +31,29 @@ from typing import Any
 
 import numpy as np
 
-from ofbe_data.cli.session_init import (
-    DATA_SUFFIXES,
-    assign_devices,
-    data_files,
-    group_recordings,
-    init_devices,
-    manifest_text,
-    power_cycle_of,
-    sanitise,
-)
+from ofbe_data.cli.session_init import manifest_text
 from ofbe_data.core.atomic import write_bytes_atomic
 from ofbe_data.core.cli import EXIT_DATA, EXIT_OK, EXIT_USAGE, add_params, command, fail, with_examples
 from ofbe_data.core.errors import OfbeError, OutputExistsError
-from ofbe_data.io.detect import sniff_text
-from ofbe_data.io.detect_result import Detection, Hints, show_value
-from ofbe_data.io.detect_units import DetectionError, fmt_num, quiet_mean
+from ofbe_data.io.detection import (
+    DATA_SUFFIXES,
+    Detection,
+    DetectionError,
+    Hints,
+    SessionFilesError,
+    assign_devices,
+    data_files,
+    fmt_num,
+    group_recordings,
+    init_devices,
+    power_cycle_of,
+    quiet_mean,
+    sanitise,
+    show_value,
+    sniff_text,
+)
 from ofbe_data.io.device_options import COLUMN_KEYS, GYRO_KEYS, GYRO_UNITS
-from ofbe_data.io.formats import read_device_file
+from ofbe_data.io.formats import reference_formats
 from ofbe_data.io.gravity import G0
 from ofbe_data.io.manifest import (
     ACC_UNITS,
@@ -64,12 +69,16 @@ from ofbe_data.io.recording import Recording
 from ofbe_data.io.yamlio import YamlDocument
 from ofbe_data.labelling.batch import UsageError, expand_sessions, skipped_folders
 from ofbe_data.labelling.checks import MAX_LEVEL_TILT_DEG
-from ofbe_data.labelling.labels import SessionLabels, label_params_from, label_session, read_label_section
-from ofbe_data.labelling.pose_advice import labelled_fit, noise_of_rows, report_lines
+from ofbe_data.labelling.labels import (
+    SessionLabels,
+    label_params_from,
+    label_session,
+    read_hashed,
+    read_label_section,
+)
+from ofbe_data.labelling.multiposition import labelled_fit, noise_of_rows, report_lines
 
 PROG = "ofbe-session"
-REFERENCE_FORMATS = ("mscip-csv", "mscip-bin")
-"""Formats of the reference IMU: a device of these is the reference of a rotated session."""
 
 
 # --------------------------------------------------------------------------- arguments
@@ -230,7 +239,7 @@ def _init(args: argparse.Namespace) -> int:
                         EXIT_DATA)
         by_device = assign_devices(files, args.device)
         recordings = group_recordings(by_device)
-    except UsageError as exc:
+    except (UsageError, SessionFilesError) as exc:
         return fail(PROG, str(exc), EXIT_USAGE)
     for rel in ignored:
         print(f"ignored: {rel} (not a data file suffix)")
@@ -250,11 +259,11 @@ def _init(args: argparse.Namespace) -> int:
     models = dict(args.model)
     try:
         devices, ids = init_devices(by_device, dets, models)
-    except UsageError as exc:
+    except SessionFilesError as exc:
         return fail(PROG, str(exc), EXIT_USAGE)
     recordings = [(rid, {sub: rel for dev, rel in files_of.items() for sub in ids[dev]})
                   for rid, files_of in recordings]
-    refs = [d for d in devices if d.format in REFERENCE_FORMATS] if len(devices) > 1 else []
+    refs = [d for d in devices if d.format in reference_formats()] if len(devices) > 1 else []
     ref = None
     if args.reference:
         ref = next((d for d in devices if d.id == args.reference), None)
@@ -381,7 +390,7 @@ def _file_lines(m: SessionManifest, rid: str, dev: str, rec: Recording, labels: 
 def _next_pose_lines(m: SessionManifest, labels: SessionLabels, params: Any) -> list[str]:
     """Per DUT with labelled poses: the model the label writes with its standard errors and why
     (the label's own columns, so that check and label agree), and the next orientations to record
-    (methods.md §8, :func:`ofbe_data.labelling.pose_advice.report_lines`), expected with the label's own
+    (methods.md §8, :func:`ofbe_data.labelling.multiposition.report_lines`), expected with the label's own
     error model."""
     out: list[str] = []
     for dev in m.duts:
@@ -408,12 +417,12 @@ def _check_one(folder: Path, params: Any) -> bool:
     print(f"{folder}: {m.campaign}/{m.session}, {m.kind}, {n} recording{'s' if n != 1 else ''}, devices "
           f"{', '.join(f'{d.id} ({d.role}, {d.format})' for d in m.devices.values())}; g_local "
           f"{m.g_local:.5f} m/s²")
-    recs: dict[tuple[str, str], Recording] = {}
+    read: dict[tuple[str, str], tuple[Recording, str]] = {}  # each file read once, labelled from here
     ok = True
     for r in m.recordings:
         for dev, rel in r.files.items():
             try:
-                recs[(r.id, dev)] = read_device_file(m.file_path(r, dev), m.devices[dev])
+                read[(r.id, dev)] = read_hashed(m.file_path(r, dev), m.devices[dev])
             except OfbeError as exc:
                 print(f"  {r.id}  {dev}  {rel}\n      cannot read: {exc}")
                 ok = False
@@ -423,7 +432,7 @@ def _check_one(folder: Path, params: Any) -> bool:
     try:
         with warnings.catch_warnings(), np.errstate(all="ignore"):
             warnings.simplefilter("ignore")
-            labels = label_session(folder, params)
+            labels = label_session(folder, params, manifest=m, read=read)
     except OfbeError as exc:
         print(f"  labelling fails: {exc}")
         return False
@@ -431,7 +440,7 @@ def _check_one(folder: Path, params: Any) -> bool:
     for r in m.recordings:
         for dev, rel in r.files.items():
             print(f"  {r.id}  {dev}  {rel}")
-            lines, bad = _file_lines(m, r.id, dev, recs[(r.id, dev)], labels)
+            lines, bad = _file_lines(m, r.id, dev, read[(r.id, dev)][0], labels)
             rejected += bad
             print("\n".join(f"      {line}" for line in lines))
     other = [w for w in labels.warnings if not any(w.startswith(f"{r.id}/{d}: ") for r in m.recordings

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -252,7 +253,8 @@ DEFAULT_PARAMS = LabelParams()
 
 
 def label_session(folder: str | Path, params: LabelParams = DEFAULT_PARAMS, *,
-                  keep_segments: bool = False, manifest: SessionManifest | None = None) -> SessionLabels:
+                  keep_segments: bool = False, manifest: SessionManifest | None = None,
+                  read: Mapping[tuple[str, str], tuple[Recording, str]] | None = None) -> SessionLabels:
     """Label every (recording, DUT) of one session folder.
 
     Parameters
@@ -267,6 +269,10 @@ def label_session(folder: str | Path, params: LabelParams = DEFAULT_PARAMS, *,
         ignores it).
     manifest
         The session's manifest when already loaded from ``folder`` (else it is read here).
+    read
+        Files the caller has read already (``ofbe-session check``, which reports on each):
+        ``(recording id, device) → (recording, hex SHA-256 of the bytes its reader parsed)``;
+        those are not read again.
 
     Returns
     -------
@@ -290,9 +296,10 @@ def label_session(folder: str | Path, params: LabelParams = DEFAULT_PARAMS, *,
         rels: dict[str, str] = {}
         for dev_id, rel in rec_spec.files.items():
             path = m.file_path(rec_spec, dev_id)
-            with file_digests() as digests:  # hashed from the bytes the reader parsed
-                recs[dev_id] = read_device_file(path, m.devices[dev_id])
-            out.files[rel] = digests.get(Path(path)) or sha256_file(path)
+            if read is not None and (rec_spec.id, dev_id) in read:
+                recs[dev_id], out.files[rel] = read[(rec_spec.id, dev_id)]
+            else:
+                recs[dev_id], out.files[rel] = read_hashed(path, m.devices[dev_id])
             rels[dev_id] = rel
             _rate_warnings(out, rec_spec.id, dev_id, recs[dev_id])
         if m.kind == "rotated":
@@ -305,6 +312,15 @@ def label_session(folder: str | Path, params: LabelParams = DEFAULT_PARAMS, *,
     if m.kind == "multi-position":
         label_multi_position(out, read_all, params, keep_segments)
     return out
+
+
+def read_hashed(path: str | Path, spec: Any) -> tuple[Recording, str]:
+    """A device file read (:func:`~ofbe_data.io.formats.read_device_file` with its manifest
+    ``spec``) and the hex SHA-256 of the bytes its reader parsed (of the file, where the reader
+    does not say)."""
+    with file_digests() as digests:
+        rec = read_device_file(path, spec)
+    return rec, digests.get(Path(path)) or sha256_file(path)
 
 
 def provenance(labels: SessionLabels, params: LabelParams) -> dict[str, Any]:
