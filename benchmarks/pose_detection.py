@@ -2,7 +2,7 @@
 
 Usage: python benchmarks/pose_detection.py [--repeat N] [--seeds N]
 
-Builds the synthetic recordings of ``tests/ofbe_data/test_poses.py`` (K poses of 2–10 s, 1–4 s
+Builds the synthetic recordings of ``tests/ofbe_data/labelling/test_poses.py`` (K poses of 2–10 s, 1–4 s
 of handling between them, ADXL345-like noise and quantisation, a known offset and scale) and
 prints:
 
@@ -28,10 +28,13 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the tests' synthetic recordings
 
-from ofbe_data.labelling.multiposition import fit_poses  # noqa: E402
-from ofbe_data.labelling.pose_search import find_poses  # noqa: E402
-from ofbe_data.labelling.poses import PoseParams, detect_static  # noqa: E402
-from tests.ofbe_data.test_poses import (  # noqa: E402
+from ofbe_data.labelling.multiposition import (  # noqa: E402
+    PoseParams,
+    detect_static,
+    find_poses,
+    fit_poses,
+)
+from tests.ofbe_data.labelling.test_poses import (  # noqa: E402
     G,
     Synthetic,
     _offset_tolerance,

@@ -6,6 +6,7 @@ Every ``import``/``from … import`` anywhere in a module (inside functions too)
 from __future__ import annotations
 
 import ast
+import functools
 import warnings
 from pathlib import Path
 
@@ -21,7 +22,7 @@ DATA_RULES: dict[str, frozenset[str]] = {
     "labelling": frozenset({"core", "io", "labelling"}),
     "dataset": frozenset({"core", "io", "labelling", "dataset"}),
     "reports": frozenset({"core", "io", "labelling", "dataset", "reports"}),
-    "calibration": frozenset({"core", "io", "labelling", "calibration"}),
+    "calibration": frozenset({"core", "io", "labelling", "freeliving", "calibration"}),
     "freeliving": frozenset({"core", "io", "labelling", "freeliving"}),
     "cli": frozenset({"core", "io", "simulator", "labelling", "dataset", "reports", "calibration",
                       "freeliving", "cli"}),
@@ -187,6 +188,65 @@ def test_no_module_imports_another_modules_private_name() -> None:
     assert found == []
 
 
+def private_module_imports(path: Path, module: str) -> list[str]:
+    """Imports in ``path`` (module ``module``) of a private module (``_x.py``) of a package other than
+    the importer's own: ``pkg._x`` may be imported only by modules inside ``pkg``."""
+    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    out = []
+    for node in ast.walk(tree):
+        targets: list[str] = []
+        if isinstance(node, ast.Import):
+            targets = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            # ``from pkg import _x`` names a private module when pkg/_x.py exists (a private name
+            # of a module is the rule above's)
+            targets = [node.module] + [f"{node.module}.{a.name}" for a in node.names
+                                       if f"{node.module}.{a.name}" in _modules()]
+        for target in targets:
+            parts = target.split(".")
+            if parts[0] not in ("ofbe_data", "ofbe_model"):
+                continue
+            private = next((i for i, part in enumerate(parts) if part.startswith("_")
+                            and not part.startswith("__")), None)
+            if private is None:
+                continue
+            package = ".".join(parts[:private])
+            if module != package and not module.startswith(package + "."):
+                out.append(f"{path.relative_to(ROOT) if path.is_relative_to(ROOT) else path}:{node.lineno}: "
+                           f"imports {target}, private to {package}")
+    return out
+
+
+@functools.cache
+def _modules() -> frozenset[str]:
+    """Every module of ours, dotted."""
+    return frozenset(_module_name(p) for p in _sources("ofbe_data", "ofbe_model"))
+
+
+def test_a_private_module_is_imported_only_from_its_own_package() -> None:
+    """``pkg/_x.py`` is behind ``pkg/__init__.py``: nothing outside ``pkg`` imports it (tests of the
+    package's internals aside)."""
+    found = [v for p in _sources("ofbe_data", "ofbe_model", "pipelines", "benchmarks")
+             for v in private_module_imports(p, _module_name(p))]
+    assert _modules() >= {"ofbe_data.io.detection._sniff", "ofbe_data.io.detection._session"}
+    assert found == []
+
+
+@pytest.mark.parametrize(("source", "module", "bad"), [
+    ("from ofbe_data.io.detection._layout import TextLines\n", "ofbe_data.cli.session", True),
+    ("from ofbe_data.io.detection import _layout\n", "ofbe_data.freeliving.raw", True),
+    ("def f():\n    import ofbe_data.io.detection._units\n", "ofbe_data.io.manifest", True),
+    ("from ofbe_data.io.detection._units import fmt_num\n", "ofbe_data.io.detection._result", False),
+    ("from ofbe_data.io.detection import sniff_text\n", "ofbe_data.cli.session", False),
+])
+def test_a_private_module_imported_from_outside_is_reported(tmp_path: Path, source: str, module: str,
+                                                            bad: bool) -> None:
+    path = tmp_path / "m.py"
+    path.write_text(source)
+    found = private_module_imports(path, module)
+    assert len(found) == int(bad) and all("private to ofbe_data.io.detection" in f for f in found)
+
+
 def test_no_import_cycle_between_files() -> None:
     graph = _graph()
     cycles: list[list[str]] = []
@@ -221,7 +281,7 @@ def test_every_package_says_what_it_holds_and_may_import() -> None:
 @pytest.mark.parametrize(("registry", "doc"), [
     ("ofbe_data.io.formats:format_names", "docs/formats.md"),
     ("ofbe_model.estimators:estimator_names", "docs/estimators.md"),
-    ("ofbe_model.cli.export:FORMATS", "docs/exports.md"),
+    ("ofbe_data.calibration.exports:export_names", "docs/exports.md"),
 ])
 def test_the_docs_name_every_registered_member(registry: str, doc: str) -> None:
     import importlib

@@ -129,7 +129,7 @@ class ChunkSink:
     one when HDF5 would evict it (the first by flushing the dataset); :meth:`finish` places
     what the cache would still hold, after the file's other objects, just before the flush.
     Every allocation then happens in HDF5's own order: the bytes are those of the sample path
-    (``tests/ofbe_data/test_sharding.py`` compares them for many window lengths and counts).
+    (``tests/ofbe_data/dataset/test_sharding.py`` compares them for many window lengths and counts).
     """
 
     def __init__(self, ds: h5py.Dataset) -> None:

@@ -3,7 +3,7 @@
 Tap synchronisation (:mod:`~ofbe_data.labelling.sync`), static detection
 (:mod:`~ofbe_data.labelling.stationarity`), Rodrigues' rotation and the nearest-axis rule
 (:mod:`~ofbe_data.labelling.orientation`), the multi-position fit
-(:mod:`~ofbe_data.labelling.multiposition`), the campaign fit
+(:mod:`~ofbe_data.labelling.multiposition._fit`), the campaign fit
 (:mod:`~ofbe_data.labelling.campaign_fit`), convergence and Allan deviation
 (:mod:`~ofbe_data.labelling.convergence`, :mod:`~ofbe_data.labelling.allan`), the small-angle
 leak (:mod:`~ofbe_data.labelling.smallangle`), per-session labelling

@@ -30,9 +30,8 @@ from ofbe_data.labelling.checks import (
     typical_norm_problem,
 )
 from ofbe_data.labelling.convergence import PAPER_THRESHOLD, PAPER_WINDOW, convergence_index
-from ofbe_data.labelling.multiposition import MODELS
+from ofbe_data.labelling.multiposition import MODELS, PoseParams
 from ofbe_data.labelling.orientation import roll_pitch
-from ofbe_data.labelling.poses import PoseParams
 from ofbe_data.labelling.stationarity import (
     StaticParams,
     check_static,
@@ -75,7 +74,7 @@ class LabelParams:
         The paper's convergence criterion (steps, m/s²).
     fit_model
         The model of methods.md §8's ladder fitted to a multi-position session's poses:
-        ``auto`` (the richest the poses support, :func:`ofbe_data.labelling.ladder.choose_fit`)
+        ``auto`` (the richest the poses support, :func:`ofbe_data.labelling.multiposition.choose_fit`)
         or one forced: ``offset``, ``scale-offset``, ``full``, or any of them with
         ``+temperature``. (``multi_position_model`` is read as a former name of this key.)
     fit_alpha
@@ -101,7 +100,7 @@ class LabelParams:
         Largest angle between a DUT's measured gravity direction and the one its declared
         ``reference_to_sensor`` predicts (rotated sessions); beyond it ``mount-mismatch``.
     poses
-        The pose detector of multi-position sessions (:mod:`ofbe_data.labelling.poses`).
+        The pose detector of multi-position sessions (:mod:`ofbe_data.labelling.multiposition._poses`).
     """
 
     min_samples: int = 4500

@@ -2,10 +2,10 @@
 
 methods.md §8. Every recording of a device may hold one pose or many; the poses are found
 with a threshold chosen over all the device's recordings at once
-(:func:`~ofbe_data.labelling.pose_search.find_session_poses`), each pose passes the same
+(:func:`~ofbe_data.labelling.multiposition.find_session_poses`), each pose passes the same
 checks as any stationary segment, and the norm-constrained fit over the device's poses gives
 its zero-g offset, and as far as the poses support it (``label.fit_model``, the ladder of
-:func:`~ofbe_data.labelling.ladder.choose_fit`) its scales, non-orthogonality and bias
+:func:`~ofbe_data.labelling.multiposition.choose_fit`) its scales, non-orthogonality and bias
 temperature slope, every parameter with its standard error. Each pose becomes one label row:
 ``pose`` numbers it within its recording, ``segment_start_s``/``segment_end_s`` give its
 interval; the device's fit is repeated on each of its rows.
@@ -33,19 +33,24 @@ from ofbe_data.labelling.label_rows import (
     quality,
     segment_mean,
 )
-from ofbe_data.labelling.ladder import ModelChoice, choose_fit
 from ofbe_data.labelling.multiposition import (
+    ModelChoice,
+    NoPosesError,
+    Pose,
     PoseFit,
     base_model,
+    choose_fit,
+    direction_groups,
+    find_session_poses,
     has_temperature,
     map_from_params,
     min_poses,
+    noise_of_rows,
     parameter_names,
+    planning_noise,
+    pose_noise,
+    refusal_advice,
 )
-from ofbe_data.labelling.pose_advice import noise_of_rows, planning_noise, refusal_advice
-from ofbe_data.labelling.pose_errors import pose_noise
-from ofbe_data.labelling.pose_search import direction_groups, find_session_poses
-from ofbe_data.labelling.poses import NoPosesError, Pose
 
 RecordingSet = list[tuple[str, dict[str, Recording], dict[str, str]]]
 """Per recording of a session: its id, its files read (device → Recording) and their paths."""
@@ -148,7 +153,7 @@ def _device_rows(out: SessionLabels, dev: DeviceSpec, recordings: RecordingSet, 
 def _poses_to_add(usable: list[tuple[str, Recording, str]], found: tuple[tuple[Pose, ...], ...], g: float,
                   params: LabelParams) -> str:
     """``; record N more poses …``: the poses that let the label fit a model
-    (:func:`~ofbe_data.labelling.pose_advice.refusal_advice`), from the still poses found (per
+    (:func:`~ofbe_data.labelling.multiposition.refusal_advice`), from the still poses found (per
     recording of ``usable``) with their own noise; empty when there is none."""
     poses = [(rec_id, rec, p) for (rec_id, rec, _), mine in zip(usable, found, strict=False) for p in mine]
     if not poses:
@@ -187,7 +192,7 @@ def _fit_device(out: SessionLabels, dev: DeviceSpec, rows: list[dict[str, Any]],
     a norm 1.5e-4 short, 0.15 mg), and a face held twice is two measurements of one direction,
     which the residual's degrees of freedom then count. The standard errors know each pose's
     white noise (its samples' variance over their number) and which poses share one placement
-    (consecutive in a recording, one direction), :func:`~ofbe_data.labelling.pose_errors.pose_noise`.
+    (consecutive in a recording, one direction), :func:`~ofbe_data.labelling.multiposition.pose_noise`.
     """
     g = out.manifest.g_local
     means = np.array([r["_mean"] for r in rows])

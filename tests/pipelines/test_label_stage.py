@@ -47,23 +47,33 @@ def _module_file(module: str) -> str | None:
 
 
 def _imported_files(entry: str) -> set[str]:
-    """Every ofbe_data / ofbe_model source file reachable by imports from ``entry``."""
+    """Every ofbe_data / ofbe_model source file reachable by imports from ``entry``, with the
+    ``__init__.py`` of every package above each (importing ``a.b.c`` runs ``a`` and ``a.b`` first)."""
     todo, seen = [entry], set()
     while todo:
         rel = todo.pop()
         if rel in seen:
             continue
         seen.add(rel)
+        parent = Path(rel).parent if rel.startswith(("ofbe_data/", "ofbe_model/")) else Path(".")
+        while parent != Path(".") and (ROOT / parent / "__init__.py").is_file():
+            todo.append(str(parent / "__init__.py"))
+            parent = parent.parent
         tree = ast.parse((ROOT / rel).read_text())
         # a package's lazy ``__getattr__`` (ofbe_data.load_dataset) imports only when used
         tree.body = [n for n in tree.body if not (isinstance(n, ast.FunctionDef) and n.name == "__getattr__")]
         for node in ast.walk(tree):
             if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith(("ofbe_data",
                                                                                             "ofbe_model")):
-                for name in [node.module, *(f"{node.module}.{a.name}" for a in node.names)]:
-                    found = _module_file(name)
-                    if found:
-                        todo.append(found)
+                names = [node.module, *(f"{node.module}.{a.name}" for a in node.names)]
+            elif isinstance(node, ast.Import):
+                names = [a.name for a in node.names if a.name.startswith(("ofbe_data", "ofbe_model"))]
+            else:
+                continue
+            for name in names:
+                found = _module_file(name)
+                if found:
+                    todo.append(found)
     return seen
 
 

@@ -1,0 +1,1 @@
+"""Helpers the tests share: other tools' readers replicated, paths, small builders."""
