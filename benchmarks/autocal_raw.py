@@ -16,10 +16,12 @@ machine stretches the wall time):
 - ``ofbe``: :func:`ofbe_data.freeliving.raw.read_raw_epochs` (ofbe's block readers, GGIR's
   epochs, the file's SHA-256 from the same reading) — the acceptance: ≤ 15 s and ≤ 1.5 GB peak;
 - ``ofbe+ggir``: the same and :func:`~ofbe_data.freeliving.ggir.ggir_calibrate` on the epochs;
+- ``ofbe+ofbe``: the same and :func:`~ofbe_data.freeliving.ofbe.ofbe_calibrate` (``--mode ofbe``,
+  the default), the acceptance's "reading included";
 - ``actfast``: ``actfast.read`` of the same file, which holds every sample at once.
 
 Run: ``python benchmarks/autocal_raw.py [--days 7] [--rate 100] [--formats cwa,bin,gt3x]
-[--modes ofbe,ofbe+ggir,actfast] [--out /tmp/ofbe-autocal-raw]``. Prints one line per
+[--modes ofbe,ofbe+ggir,ofbe+ofbe,actfast] [--out /tmp/ofbe-autocal-raw]``. Prints one line per
 measurement: format, mode, wall and CPU seconds, peak resident memory (``ru_maxrss``), epochs.
 """
 
@@ -155,6 +157,8 @@ def _measure(mode: str, path: Path) -> None:
     else:
         from ofbe_data.freeliving.ggir import ggir_calibrate
         from ofbe_data.freeliving.raw import read_raw_epochs
+        if mode == "ofbe+ofbe":
+            from ofbe_data.freeliving.ofbe import ofbe_calibrate
     start = resource.getrusage(resource.RUSAGE_SELF)
     cpu0 = start.ru_utime + start.ru_stime
     t = time.perf_counter()
@@ -169,6 +173,9 @@ def _measure(mode: str, path: Path) -> None:
         if mode == "ofbe+ggir":
             result = ggir_calibrate(raw.epochs)
             detail += f", {result.n_still} still; qc: {result.qc[:40]}"
+        elif mode == "ofbe+ofbe":
+            fit = ofbe_calibrate(raw.epochs)
+            detail += f", {fit.n_still} still, {fit.model}; qc: {fit.qc[:40]}"
     seconds = time.perf_counter() - t
     usage = resource.getrusage(resource.RUSAGE_SELF)
     cpu = usage.ru_utime + usage.ru_stime - cpu0
@@ -182,10 +189,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--days", type=float, default=7.0)
     p.add_argument("--rate", type=float, default=100.0)
     p.add_argument("--out", type=Path, default=Path("/tmp/ofbe-autocal-raw"))
-    p.add_argument("--measure", choices=("ofbe", "ofbe+ggir", "actfast"), help=argparse.SUPPRESS)
+    p.add_argument("--measure", choices=("ofbe", "ofbe+ggir", "ofbe+ofbe", "actfast"), help=argparse.SUPPRESS)
     p.add_argument("--path", type=Path, help=argparse.SUPPRESS)
     p.add_argument("--formats", default="cwa,bin,gt3x")
-    p.add_argument("--modes", default="ofbe,ofbe+ggir,actfast")
+    p.add_argument("--modes", default="ofbe,ofbe+ggir,ofbe+ofbe,actfast")
     p.add_argument("--check-days", type=float, default=0.01,
                    help="length of the small files checked against actfast first (0: no check)")
     p.add_argument("--cpu", default="0", help="CPU to pin each measurement to ('' for none)")

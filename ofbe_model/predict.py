@@ -51,16 +51,14 @@ from ofbe_data.labelling.checks import (
 )
 from ofbe_data.labelling.labels import GARBLED, IMPLAUSIBLE_NORM, IMPLAUSIBLE_RATE, SATURATED, LabelParams
 from ofbe_data.labelling.stationarity import StaticParams, check_static, longest_run
-from ofbe_model.deploy.final import OFBENET_NAME, PRIOR_NAME, SET_FORMAT, SET_NAME
+from ofbe_model.deploy.defaults import DEFAULT_WINDOW, MODEL_FILES
+from ofbe_model.deploy.final import SET_FORMAT, SET_NAME
 from ofbe_model.estimators.base import Estimator, EstimatorError
 from ofbe_model.estimators.domain import TrainingDomain, domain_problems, window_direction
 
-DEFAULT_WINDOW = 3000
 BARE_FILES = ("a bare file is read as ofbe-logger or mscip-csv; for any other file (a generic csv, "
               "another logger's format) make its folder a session with `ofbe-session init FOLDER` and "
               "pass the folder")
-MODEL_FILES = {"ofbenet": OFBENET_NAME, "gravity-prior": PRIOR_NAME}
-"""The deployed models' file names (:mod:`ofbe_model.deploy.final`), by estimator."""
 
 
 @dataclass(frozen=True)

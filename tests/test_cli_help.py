@@ -1,11 +1,15 @@
 """Every command's ``--help``: an example, help text for every option, defaults shown one way,
-and ``ofbe-export FORMAT --help`` with that format's options only."""
+``ofbe-export FORMAT --help`` with that format's options only, and ``--help`` (or a usage error)
+answered without the heavy libraries (docs/architecture.md, "Command lines")."""
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import json
 import re
+import subprocess
+import sys
 import tomllib
 from pathlib import Path
 
@@ -94,3 +98,57 @@ def test_export_format_help_shows_that_formats_options_only(capsys: pytest.Captu
     assert "--frame-id" in ros and "--dataset" not in ros and "--rostopic" not in ros
     assert "--dataset" in tflite and "--frame-id" not in tflite and "--raw" not in tflite
     assert "ofbe-export ros " in ros.split("examples:")[1]
+
+
+HEAVY = ("pandas", "pyarrow", "scipy", "h5py", "tensorflow", "keras", "matplotlib", "dask", "distributed")
+"""Libraries no command may import to answer ``--help`` or a usage error (each takes a second or
+more to import; NumPy and PyYAML, a tenth, may be)."""
+HELP_PROBE = """\
+import json, sys
+from {module} import {func}
+codes = []
+for argv in {argvs!r}:
+    sys.argv = [{script!r}, *argv]
+    try:
+        codes.append({func}())
+    except SystemExit as exc:
+        codes.append(exc.code)
+print("PROBE " + json.dumps({{"codes": codes, "modules": sorted(sys.modules)}}))
+"""
+"""Runs a console script's function (pyproject.toml's target, as pip's script does) on each
+command line in turn, then prints the exit codes and every module the process imported."""
+
+
+def _argvs(script: str) -> list[list[str]]:
+    """A usage error, ``--help``, and ``--help`` of each subcommand (every ``ofbe-export`` format)."""
+    subs: tuple[str, ...] = SUBCOMMANDS.get(script, ())
+    if script == "ofbe-export":
+        from ofbe_data.calibration.exports import export_names
+
+        subs = export_names()
+    return [["--no-such-option"], ["--help"], *([sub, "--help"] for sub in subs)]
+
+
+@pytest.mark.parametrize("script", sorted(SCRIPTS))
+def test_help_and_usage_errors_import_no_heavy_library(script: str) -> None:
+    module, func = SCRIPTS[script].split(":")
+    argvs = _argvs(script)
+    code = HELP_PROBE.format(module=module, func=func, argvs=argvs, script=script)
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT,
+                          timeout=300, check=False)  # a hang guard: a healthy run takes a second
+    line = next((ln for ln in done.stdout.splitlines() if ln.startswith("PROBE ")), None)
+    assert line is not None, f"{script}: no probe line; stderr: {done.stderr[-2000:]}"
+    probe = json.loads(line.removeprefix("PROBE "))
+    expected = [2] + [0] * (len(argvs) - 1)  # argparse's usage error, then each help
+    assert probe["codes"] == expected, (script, argvs, probe["codes"], done.stderr[-2000:])
+    assert f"{script}: error: unrecognized arguments: --no-such-option" in done.stderr \
+        or f"{script}: error: the following arguments are required" in done.stderr, done.stderr[-2000:]
+    heavy = sorted({m for m in probe["modules"] if m.split(".")[0] in HEAVY})
+    assert heavy == [], f"{script} --help imports {sorted({m.split('.')[0] for m in heavy})}"
+
+
+def test_simulate_help_lists_the_simulators_own_profiles() -> None:
+    from ofbe_data.cli.simulate import profile_names
+    from ofbe_data.simulator import builtin_profiles
+
+    assert profile_names() == builtin_profiles() and "tiny-rotated" in profile_names()

@@ -13,7 +13,9 @@
   :func:`~ofbe_data.calibration.store.find_calibration`;
 - :mod:`~ofbe_data.calibration.registry`: what a format of ``ofbe-export`` is, and the
   entry-point group other packages register formats in;
-  :mod:`~ofbe_data.calibration.exports`: the calibration formats and the one registry;
+  :mod:`~ofbe_data.calibration.exports`: the calibration formats and the one registry (light:
+  names, help, options and examples; their defaults in :mod:`~ofbe_data.calibration.defaults`);
+  :mod:`~ofbe_data.calibration.handlers`: what each calibration format does when it runs;
   :mod:`~ofbe_data.calibration.output`: writing an export's files.
 
 The command is ``ofbe-export`` (:mod:`ofbe_data.cli.export`; the model package registers

@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 
 from ofbe_data import __version__
+from ofbe_data.calibration.defaults import DEFAULT_FRAME_ID, DEFAULT_ROSTOPIC, GGIR_CONVENTIONS, ROS_NODE
 from ofbe_data.calibration.noise import MIN_CLUSTERS, RW_BOUND_CONFIDENCE, NoiseEstimate
 from ofbe_data.calibration.results import ZERO_G_OFFSET, CalibrationExportError, CalibrationResult
 from ofbe_data.io.gravity import G0
@@ -52,10 +53,6 @@ GGIR_COLUMNS = ("filename", "scale.x", "scale.y", "scale.z", "offset.x", "offset
                 "use.temperature", "QCmessage", "device", "power_cycle", "bias_kind", "raw_file")
 """Columns of the GGIR file: those GGIR's ``backup.cal.coef`` reader looks up by name (g.part1),
 then ofbe's own (GGIR ignores them)."""
-DEFAULT_FRAME_ID = "imu_link"
-"""ROS ``frame_id`` when none is given (REP 145's IMU frame)."""
-DEFAULT_ROSTOPIC = "/imu0"
-"""Kalibr ``rostopic`` when none is given."""
 
 
 # ----------------------------------------------------------------------------- conventions
@@ -79,11 +76,6 @@ def imucal_accelerometer(bias: Sequence[float], matrix: Any = None
     """
     k_a, r_a = imucal_from_matrix(np.eye(3) if matrix is None else matrix)
     return k_a, r_a, np.asarray(bias, dtype=np.float64)
-
-
-GGIR_CONVENTIONS = ("unit-sphere", "local")
-"""``--g-convention`` of the GGIR export: GGIR's own (calibrated readings at rest on the sphere of
-radius 1 g, as its auto-calibration makes them) or ofbe's (radius g_local / g0)."""
 
 
 def ggir_coefficients(bias: Sequence[float], matrix: Any = None, g0: float = G0,
@@ -287,11 +279,6 @@ def kalibr_file(r: CalibrationResult, noise: NoiseEstimate, written: datetime,
     lines += [f"rostopic: {json.dumps(rostopic)}",
               f"update_rate: {yaml_float(round(noise.fs_hz, 6))}  # Hz, measured sample rate"]
     return ("\n".join(lines) + "\n").encode()
-
-
-ROS_NODE = "/**"
-"""Node name of the ROS 2 parameter file: ``/**`` gives the parameters to every node that loads
-the file (``--ros-args --params-file``); ``ofbe-export ros --ros-node NAME`` names one."""
 
 
 def ros_file(r: CalibrationResult, written: datetime, frame_id: str = DEFAULT_FRAME_ID,

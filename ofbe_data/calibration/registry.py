@@ -12,7 +12,9 @@ whose object is a :class:`Format`. :func:`plugin_formats` loads them when the pa
 (``importlib.metadata``); one whose module cannot be imported (the model package or its
 requirements not installed) is absent from the command, and asking for it by name says which
 package provides it (:class:`Unavailable`). This is how the model package registers ``tflite``
-and ``c-header``.
+and ``c-header``. This module imports nothing heavy: ``ofbe-export --help`` builds its parser from
+the formats' names, help, options and examples alone, so a format imports what it needs (NumPy,
+pandas, TensorFlow) in its handler, when it runs.
 """
 
 from __future__ import annotations
@@ -21,9 +23,12 @@ import argparse
 from collections.abc import Callable
 from dataclasses import dataclass
 from importlib.metadata import entry_points
+from typing import TYPE_CHECKING
 
-from ofbe_data.calibration.output import ExportFile
 from ofbe_data.core.errors import OfbeError
+
+if TYPE_CHECKING:
+    from ofbe_data.calibration.output import ExportFile
 
 PROG = "ofbe-export"
 """The command's name, which its messages begin with."""

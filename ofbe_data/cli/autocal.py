@@ -37,6 +37,7 @@ import sys
 from collections.abc import Sequence
 from datetime import UTC, datetime
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ofbe_data.core.atomic import write_bytes_atomic
 from ofbe_data.core.checksums import file_sha256
@@ -44,26 +45,13 @@ from ofbe_data.core.cli import EXIT_DATA, add_jobs, add_scheduler, command, fail
 from ofbe_data.core.errors import OfbeError
 from ofbe_data.core.parallel import iter_ordered
 from ofbe_data.core.scheduler import SchedulerError, TaskError
-from ofbe_data.freeliving import GgirSettings, ggir_calibrate, parse_epoch_csv
-from ofbe_data.freeliving.epochs import EpochTable, is_epoch_csv
-from ofbe_data.freeliving.ofbe import OfbeSettings, ofbe_calibrate
-from ofbe_data.freeliving.params import (
-    PARAMS_NAME,
-    AutocalParams,
-    load_autocal_params,
-    params_yaml,
-    with_overrides,
-)
-from ofbe_data.freeliving.raw import RawEpochs, read_raw_epochs
-from ofbe_data.freeliving.summary import (
-    COLUMNS,
-    epochs_table,
-    parquet_bytes,
-    summary_csv,
-    summary_parquet,
-    summary_row,
-)
-from ofbe_data.io.detection import Hints
+from ofbe_data.freeliving.ggir import GgirSettings
+
+if TYPE_CHECKING:
+    from ofbe_data.freeliving.epochs import EpochTable
+    from ofbe_data.freeliving.ofbe import OfbeSettings
+    from ofbe_data.freeliving.raw import RawEpochs
+    from ofbe_data.io.detection import Hints
 
 PROG = "ofbe-autocal"
 SUMMARY_NAME = "summary.csv"
@@ -76,7 +64,7 @@ EPOCH_SUFFIX = ".csv"
 RAW_SUFFIXES = (".cwa", ".bin", ".gt3x")
 """Raw wearable formats (Axivity, GENEActiv, ActiGraph)."""
 
-__all__ = ["COLUMNS", "PROG", "calibrate_file", "epochs_name", "expand_inputs", "main"]
+__all__ = ["PROG", "calibrate_file", "epochs_name", "expand_inputs", "main"]
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -96,11 +84,11 @@ def _parser() -> argparse.ArgumentParser:
                         "+temperature) with robust weights and standard errors; ggir: GGIR's "
                         "g.calibrate, reproduced")
     p.add_argument("--epoch-s", type=float,
-                   help=f"length of one epoch, s, for the hours of data (default: {AutocalParams.epoch_s}, "
+                   help=f"length of one epoch, s, for the hours of data (default: {GgirSettings.epoch_s}, "
                         "GGIR's)")
     p.add_argument("--still-sd-g", type=float,
                    help="an epoch is still when its standard deviation is below this on every axis, g "
-                        f"(default: {AutocalParams.still_sd_g}, GGIR's)")
+                        f"(default: {GgirSettings.still_sd_g}, GGIR's)")
     p.add_argument("--sphere-check", action=argparse.BooleanOptionalAction, default=None,
                    help="--no-sphere-check fits even when the still epochs do not cover the sphere (ggir: "
                         "beyond ±0.3 g on every axis; ofbe: within 45° of every signed axis); default: check")
@@ -182,6 +170,9 @@ def read_epochs(path: Path, settings: GgirSettings | OfbeSettings, hints: Hints 
     OSError
         The file cannot be read.
     """
+    from ofbe_data.freeliving.epochs import is_epoch_csv, parse_epoch_csv
+    from ofbe_data.freeliving.raw import read_raw_epochs
+
     if path.suffix.lower() == EPOCH_SUFFIX and is_epoch_csv(path):
         return parse_epoch_csv(path.read_bytes(), path), None
     raw = read_raw_epochs(path, settings.epoch_s, ggir_whole_hours=isinstance(settings, GgirSettings),
@@ -203,6 +194,10 @@ def calibrate_file(path: Path, settings: GgirSettings | OfbeSettings, hints: Hin
     OSError
         The file cannot be read.
     """
+    from ofbe_data.freeliving.ggir import ggir_calibrate
+    from ofbe_data.freeliving.ofbe import ofbe_calibrate
+    from ofbe_data.freeliving.summary import epochs_table, parquet_bytes, summary_row
+
     epochs, raw = read_epochs(path, settings, hints)
     result = (ggir_calibrate(epochs, settings) if isinstance(settings, GgirSettings)
               else ofbe_calibrate(epochs, settings))
@@ -257,7 +252,24 @@ def _task(args: tuple[Path, GgirSettings | OfbeSettings, Hints, bool]
 
 @command(PROG)
 def main(argv: Sequence[str] | None = None) -> int:
-    args = _parser().parse_args(argv)
+    """Entry point of ``ofbe-autocal``: 0 every file read, 1 a file could not be read, 2 usage."""
+    return _run(_parser().parse_args(argv))
+
+
+def _run(args: argparse.Namespace) -> int:
+    """``ofbe-autocal`` on its parsed arguments; the calibration's modules are imported here,
+    after parsing (docs/architecture.md, "Command lines"), and by each worker in
+    :func:`calibrate_file`."""
+    from ofbe_data.freeliving.params import (
+        PARAMS_NAME,
+        AutocalParams,
+        load_autocal_params,
+        params_yaml,
+        with_overrides,
+    )
+    from ofbe_data.freeliving.summary import summary_csv, summary_parquet
+    from ofbe_data.io.detection import Hints
+
     out = Path(args.out)
     try:
         params = load_autocal_params(args.params) if args.params else AutocalParams()

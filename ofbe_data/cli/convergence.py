@@ -12,13 +12,7 @@ from pathlib import Path
 
 from ofbe_data.core.cli import add_jobs, add_params, add_scheduler, command, fail, with_examples
 from ofbe_data.core.errors import OfbeError
-from ofbe_data.io.typedconfig import read_section
-from ofbe_data.labelling.batch import expand_sessions
-from ofbe_data.labelling.convergence import (
-    STATISTICS,
-)
-from ofbe_data.labelling.labels import label_params_from
-from ofbe_data.reports.convergence import AXES, analyse, convergence_params_from, write_report
+from ofbe_data.labelling.convergence import AXES, STATISTICS
 
 PROG = "ofbe-convergence"
 
@@ -47,7 +41,18 @@ def _parser() -> argparse.ArgumentParser:
 
 @command(PROG)
 def main(argv: Sequence[str] | None = None) -> int:
-    args = _parser().parse_args(argv)
+    """Entry point of ``ofbe-convergence``: 0 written, 1 bad data, 2 usage."""
+    return _run(_parser().parse_args(argv))
+
+
+def _run(args: argparse.Namespace) -> int:
+    """``ofbe-convergence`` on its parsed arguments; the report's modules are imported here, after
+    parsing (docs/architecture.md, "Command lines")."""
+    from ofbe_data.io.typedconfig import read_section
+    from ofbe_data.labelling.batch import expand_sessions
+    from ofbe_data.labelling.labels import label_params_from
+    from ofbe_data.reports.convergence import analyse, convergence_params_from, write_report
+
     try:
         if args.jobs < 1:
             return fail(PROG, f"--jobs: expected an integer ≥ 1, found {args.jobs}", 2)

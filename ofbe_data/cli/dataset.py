@@ -21,11 +21,6 @@ from pathlib import Path
 
 from ofbe_data.core.cli import add_jobs, add_params, add_scheduler, command, fail, io_failure, with_examples
 from ofbe_data.core.errors import ConfigError, OfbeError
-from ofbe_data.dataset.build import build_dataset, dataset_params_from
-from ofbe_data.dataset.export import export_dataset
-from ofbe_data.dataset.fidelity import truth_dir_of
-from ofbe_data.dataset.reader import verify_dataset
-from ofbe_data.io.typedconfig import read_section
 
 PROG = "ofbe-dataset"
 
@@ -79,6 +74,10 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def _build(args: argparse.Namespace) -> int:
+    from ofbe_data.dataset.build import build_dataset, dataset_params_from
+    from ofbe_data.dataset.fidelity import truth_dir_of
+    from ofbe_data.io.typedconfig import read_section
+
     try:
         data = dict(read_section(args.params, "dataset")) if args.params else {}
         if args.window_length is not None:
@@ -122,9 +121,18 @@ def _signal_text(signals: Sequence[str]) -> str:
 
 @command(PROG)
 def main(argv: Sequence[str] | None = None) -> int:
-    args = _parser().parse_args(argv)
+    """Entry point of ``ofbe-dataset``: 0 done, 1 bad data, 2 usage."""
+    return _run(_parser().parse_args(argv))
+
+
+def _run(args: argparse.Namespace) -> int:
+    """``ofbe-dataset build|verify|export`` on its parsed arguments; the dataset modules are
+    imported here, after parsing (docs/architecture.md, "Command lines")."""
     if args.command == "build":
         return _build(args)
+    from ofbe_data.dataset.export import export_dataset
+    from ofbe_data.dataset.reader import verify_dataset
+
     try:
         if args.command == "verify":
             s = verify_dataset(args.path)

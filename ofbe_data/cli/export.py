@@ -34,6 +34,7 @@ parsed arguments into :class:`~ofbe_data.calibration.output.ExportFile` objects,
 options and examples; ``ofbe-export FORMAT --help`` shows them): an entry of
 :data:`~ofbe_data.calibration.exports.CALIBRATION_FORMATS`, or an entry point of another
 package. Writing, ``--force`` and ``--store`` are shared (:mod:`ofbe_data.calibration.output`).
+Building the parser imports no format's modules: a handler imports them when its format runs.
 Exit status: 0 written, 1 bad input data, 2 usage (``ofbe_data.core.cli``).
 """
 
@@ -46,7 +47,6 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from ofbe_data.calibration.exports import export_formats
-from ofbe_data.calibration.output import ExportUsageError, write_outputs
 from ofbe_data.calibration.registry import PROG, Format
 from ofbe_data.core.cli import EXIT_DATA, EXIT_OK, EXIT_USAGE, command, fail, io_failure, with_examples
 from ofbe_data.core.errors import OfbeError
@@ -116,7 +116,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     asked = next((w for w in words if not w.startswith("-")), None)
     if asked in unavailable:
         return fail(PROG, unavailable[asked].message, EXIT_USAGE)
-    args = build_parser(formats).parse_args(words)
+    return _run(build_parser(formats).parse_args(words), formats)
+
+
+def _run(args: argparse.Namespace, formats: dict[str, Format]) -> int:
+    """``ofbe-export FORMAT`` on its parsed arguments; writing is imported here and the format's
+    own modules by its handler, after parsing (docs/architecture.md, "Command lines")."""
+    from ofbe_data.calibration.output import ExportUsageError, write_outputs
+
     raw_out = args.out
     args.out = Path(raw_out) if raw_out is not None else None
     if args.out is None and args.store is None:

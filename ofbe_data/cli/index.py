@@ -10,14 +10,9 @@ from pathlib import Path
 
 from ofbe_data.core.cli import command, fail, with_examples
 from ofbe_data.core.errors import OfbeError
-from ofbe_data.reports.index import (
-    DEFAULT_CAMPAIGNS,
-    DEFAULT_PROTOCOLS,
-    PROG,
-    TIMINGS_FORMAT,
-    read_timings,
-    write_index,
-)
+from ofbe_data.reports.defaults import DEFAULT_CAMPAIGNS, DEFAULT_PROTOCOLS, TIMINGS_FORMAT
+
+PROG = "ofbe-index"
 
 # ----------------------------------------------------------------------------- command line
 
@@ -52,7 +47,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         0 on success; 1 when the reports folder is missing or an input cannot be read;
         2 on a bad timings file (argparse also exits 2 on bad options).
     """
-    args = _parser().parse_args(argv)
+    return _run(_parser().parse_args(argv))
+
+
+def _run(args: argparse.Namespace) -> int:
+    """``ofbe-index`` on its parsed arguments; the report's modules are imported here, after
+    parsing (docs/architecture.md, "Command lines")."""
+    from ofbe_data.reports.index import read_timings, write_index
+
     root = Path(args.root)
     out = Path(args.out) if args.out else root / "reports" / "index.md"
     try:

@@ -13,23 +13,14 @@ import sys
 from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ofbe_data.core.atomic import folders_under, remove_new_empty_folders
 from ofbe_data.core.cli import add_jobs, add_params, add_scheduler, command, fail, io_failure, with_examples
 from ofbe_data.core.errors import OfbeError
-from ofbe_data.io.manifest import MANIFEST_NAME
-from ofbe_data.labelling.batch import (
-    check_output_folder,
-    expand_sessions,
-    label_sessions,
-    skipped_folders,
-)
-from ofbe_data.labelling.convergence import read_recommendation
-from ofbe_data.labelling.labels import (
-    SessionLabels,
-    label_params_from,
-    read_label_section,
-)
+
+if TYPE_CHECKING:
+    from ofbe_data.labelling.labels import SessionLabels
 
 PROG = "ofbe-label"
 
@@ -99,7 +90,24 @@ def summary(done: Sequence[SessionLabels], failed: int) -> str:
 
 @command(PROG)
 def main(argv: Sequence[str] | None = None) -> int:
-    args = _parser().parse_args(argv)
+    """Entry point of ``ofbe-label``: 0 every session labelled or cleanly rejected, 1 a session
+    could not be read or nothing was labelled, 2 usage."""
+    return _run(_parser().parse_args(argv))
+
+
+def _run(args: argparse.Namespace) -> int:
+    """``ofbe-label`` on its parsed arguments; the labelling modules are imported here, after
+    parsing (docs/architecture.md, "Command lines")."""
+    from ofbe_data.io.manifest import MANIFEST_NAME
+    from ofbe_data.labelling.batch import (
+        check_output_folder,
+        expand_sessions,
+        label_sessions,
+        skipped_folders,
+    )
+    from ofbe_data.labelling.convergence import read_recommendation
+    from ofbe_data.labelling.labels import label_params_from, read_label_section
+
     before = folders_under(args.out)  # what a failed run may not remove
     try:
         data = read_label_section(args.params) if args.params else {}

@@ -11,10 +11,8 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from ofbe_data.core.cli import command, with_examples
-from ofbe_data.labelling.smallangle import (
-    MEASURES,
-)
-from ofbe_data.reports.small_angle import DEFAULT_OUT, MAX_GRID_POINTS, write_report
+from ofbe_data.labelling.smallangle import MEASURES
+from ofbe_data.reports.defaults import SMALL_ANGLE_OUT
 
 PROG = "ofbe-small-angle"
 
@@ -41,8 +39,8 @@ def build_parser() -> argparse.ArgumentParser:
         prog="ofbe-small-angle",
         description="Gravity leak of a levelled calibration over roll × pitch, and the tilt at which "
                     "it reaches a limit (paper §4).")
-    p.add_argument("--out", type=Path, default=DEFAULT_OUT,
-                   help=f"output folder (default: {DEFAULT_OUT})")
+    p.add_argument("--out", type=Path, default=SMALL_ANGLE_OUT,
+                   help=f"output folder (default: {SMALL_ANGLE_OUT})")
     p.add_argument("--range-deg", type=_positive(90.0), default=10.0,
                    help="grid half-width: roll and pitch span −R…+R degrees (default: 10)")
     p.add_argument("--step-deg", type=_positive(), default=0.05,
@@ -65,7 +63,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         0 on success, 2 on bad options (argparse exits with 2 and a one-line message).
     """
     parser = build_parser()
-    args = parser.parse_args(argv)
+    return _run(parser, parser.parse_args(argv))
+
+
+def _run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
+    """``ofbe-small-angle`` on its parsed arguments (``parser`` reports a grid too large); the
+    report's modules are imported here, after parsing (docs/architecture.md, "Command lines")."""
+    from ofbe_data.reports.small_angle import MAX_GRID_POINTS, write_report
+
     if args.step_deg > 2.0 * args.range_deg:
         parser.error(f"--step-deg: expected at most twice --range-deg ({2 * args.range_deg:g}), "
                      f"found {args.step_deg:g}")

@@ -24,7 +24,7 @@ from types import ModuleType
 from typing import Any
 
 from ofbe_data.core.atomic import is_write_failure
-from ofbe_data.core.entry import EXIT_INTERRUPTED, INTERRUPTED, take_over
+from ofbe_data.core.entry import EXIT_INTERRUPTED, INTERRUPTED, interrupted, take_over
 
 EXIT_OK = 0
 """Success (or, for ``ofbe-label``, every session labelled or cleanly rejected)."""
@@ -125,7 +125,9 @@ def with_examples(parser: argparse.ArgumentParser, *examples: str) -> argparse.A
 def command(prog: str) -> Callable[[Callable[..., int]], Callable[..., int]]:
     """Decorate a command's ``main``: Ctrl-C prints one line and exits 130, a failed write
     (:func:`is_write_failure`) one line and 74, no traceback. A Ctrl-C while the command's
-    modules were imported is raised as ``main`` starts (:func:`ofbe_data.core.entry.take_over`).
+    modules were imported is raised as ``main`` starts (:func:`ofbe_data.core.entry.take_over`);
+    one during the imports ``main`` makes after parsing its arguments, which a module may have
+    turned into another error (:func:`ofbe_data.core.entry.interrupted`), is reported the same way.
 
     Files are written atomically everywhere, so an interrupted run leaves whole files or none.
     """
@@ -145,6 +147,12 @@ def command(prog: str) -> Callable[[Callable[..., int]], Callable[..., int]]:
             except MemoryError:
                 return fail(prog, "ran out of memory (is a length or size parameter far too large?); "
                                   "nothing partial was written", EXIT_DATA)
+            except Exception:
+                if not interrupted():
+                    raise
+                # what a module made of a Ctrl-C while the command's own imports ran (after parsing)
+                print(f"{prog}: {INTERRUPTED}", file=sys.stderr)
+                return EXIT_INTERRUPTED
         return run
     return wrap
 

@@ -66,6 +66,13 @@ def take_over() -> None:
             raise KeyboardInterrupt
 
 
+def interrupted() -> bool:
+    """Whether this process got a Ctrl-C while one of the toolkit's commands ran: what turns an
+    error an extension module made of it (NumPy's import raises an ``ImportError``) back into
+    the one line and exit 130 (:func:`run`, :func:`ofbe_data.core.cli.command`)."""
+    return bool(_seen)
+
+
 def _ignore_ctrl_c() -> None:
     """From here on a Ctrl-C is ignored: the command is over, the process only ends."""
     while True:

@@ -30,32 +30,40 @@ slices to come) and :mod:`ofbe_data.labelling` (the calibration ladder, for ``--
 never the simulator, the dataset or reports wings, or :mod:`ofbe_model`.
 """
 
-from ofbe_data.freeliving.blocks import BadBlock, RawFileError
-from ofbe_data.freeliving.epochs import (
-    EpochFileError,
-    EpochTable,
-    idle_sleep,
-    is_epoch_csv,
-    parse_epoch_csv,
-    read_epoch_csv,
-)
-from ofbe_data.freeliving.ggir import (
-    QC_DONE,
-    QC_DONE_NO_TEMPERATURE,
-    QC_MESSAGES,
-    QC_NO_STILL,
-    QC_NOT_DECREASED,
-    QC_NOT_GOOD_ENOUGH,
-    QC_SPHERE_NOT_POPULATED,
-    QC_TOO_SHORT,
-    GgirResult,
-    GgirSettings,
-    apply_ggir,
-    fit_sphere,
-    ggir_calibrate,
-)
-from ofbe_data.freeliving.ofbe import OfbeResult, OfbeSettings, ofbe_calibrate
-from ofbe_data.freeliving.raw import IdleSleep, RawEpochs, read_raw_epochs
+from ofbe_data.core.front_door import lazy_names
+
+_FRONT_DOOR = {
+    "QC_DONE": "ofbe_data.freeliving.ggir",
+    "QC_DONE_NO_TEMPERATURE": "ofbe_data.freeliving.ggir",
+    "QC_MESSAGES": "ofbe_data.freeliving.ggir",
+    "QC_NOT_DECREASED": "ofbe_data.freeliving.ggir",
+    "QC_NOT_GOOD_ENOUGH": "ofbe_data.freeliving.ggir",
+    "QC_NO_STILL": "ofbe_data.freeliving.ggir",
+    "QC_SPHERE_NOT_POPULATED": "ofbe_data.freeliving.ggir",
+    "QC_TOO_SHORT": "ofbe_data.freeliving.ggir",
+    "BadBlock": "ofbe_data.freeliving.blocks",
+    "EpochFileError": "ofbe_data.freeliving.epochs",
+    "EpochTable": "ofbe_data.freeliving.epochs",
+    "GgirResult": "ofbe_data.freeliving.ggir",
+    "GgirSettings": "ofbe_data.freeliving.ggir",
+    "IdleSleep": "ofbe_data.freeliving.raw",
+    "OfbeResult": "ofbe_data.freeliving.ofbe",
+    "OfbeSettings": "ofbe_data.freeliving.ofbe",
+    "RawEpochs": "ofbe_data.freeliving.raw",
+    "RawFileError": "ofbe_data.freeliving.blocks",
+    "apply_ggir": "ofbe_data.freeliving.ggir",
+    "fit_sphere": "ofbe_data.freeliving.ggir",
+    "ggir_calibrate": "ofbe_data.freeliving.ggir",
+    "idle_sleep": "ofbe_data.freeliving.epochs",
+    "is_epoch_csv": "ofbe_data.freeliving.epochs",
+    "ofbe_calibrate": "ofbe_data.freeliving.ofbe",
+    "parse_epoch_csv": "ofbe_data.freeliving.epochs",
+    "read_epoch_csv": "ofbe_data.freeliving.epochs",
+    "read_raw_epochs": "ofbe_data.freeliving.raw",
+}
+"""Each name this package exports and the module that defines it (imported on first use, so that
+importing one module of the package, :mod:`~ofbe_data.freeliving.ggir` for ``ofbe-autocal``'s
+``--help``, does not import the others)."""
 
 __all__ = [
     "QC_DONE",
@@ -86,3 +94,5 @@ __all__ = [
     "read_epoch_csv",
     "read_raw_epochs",
 ]
+
+__getattr__, __dir__ = lazy_names(__name__, _FRONT_DOOR)

@@ -6,7 +6,8 @@ The records live here, apart from the manifest's validation (:mod:`ofbe_data.io.
 so that the format registry and its readers (:mod:`ofbe_data.io.formats`), which the manifest
 asks for the format names, and the detector of ``ofbe-session init`` share them without an
 import cycle. The options records' fields are the keys a device entry of their format may hold
-(:data:`FORMAT_OPTIONS`, :func:`option_keys`).
+(:data:`FORMAT_OPTIONS`, :func:`option_keys`). The session kinds (:data:`KINDS`) are here too, so
+that ``ofbe-session``'s parser offers them without importing the format registry.
 """
 
 from __future__ import annotations
@@ -18,6 +19,8 @@ import numpy as np
 
 from ofbe_data.io.typedconfig import record_keys
 
+KINDS = ("gravity-aligned", "rotated", "multi-position")
+"""A session's ``kind`` (:mod:`ofbe_data.io.manifest`)."""
 TIME_UNITS = ("s", "ms", "us", "ns", "samples")
 ACC_UNITS = ("m/s2", "g", "mg", "counts")
 TEMPERATURE_UNITS = ("C", "K", "F")

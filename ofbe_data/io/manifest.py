@@ -27,6 +27,7 @@ from ofbe_data.io.device_options import (
     COLUMN_KEYS,
     GYRO_KEYS,
     GYRO_UNITS,
+    KINDS,
     TEMPERATURE_UNITS,
     TIME_UNITS,
     WHITESPACE,
@@ -44,7 +45,6 @@ from ofbe_data.io.yamlio import FieldPath, YamlDocument, YamlProblem, format_fie
 
 MANIFEST_FORMAT = "ofbe-session/1"
 MANIFEST_NAME = "session.yaml"
-KINDS = ("gravity-aligned", "rotated", "multi-position")
 ROLES = ("dut", "reference")
 ID_PATTERN = re.compile(r"^[A-Za-z0-9._-]+$")
 """Campaign, session, device and recording ids."""

@@ -167,6 +167,8 @@ def axis_statistics(indices: np.ndarray) -> AxisConvergence:
 
 STATISTICS = ("mean", "mean+std", "median", "p95")
 """Statistics a recommendation may be based on."""
+AXES = ("x", "y", "z")
+"""Axes a recommendation may be based on (the convergence report's, :mod:`ofbe_data.reports.convergence`)."""
 
 
 def recommend_min_samples(stats: AxisConvergence, statistic: str = "mean", round_to: int = 100) -> int:

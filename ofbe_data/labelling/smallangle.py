@@ -31,7 +31,6 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
-from scipy.optimize import brentq
 
 Measure = Literal["max-axis", "norm"]
 """Error measure of a leak vector (see the module docstring)."""
@@ -177,6 +176,8 @@ def threshold_angle(limit_g: float = PAPER_LIMIT_G, direction: Direction = "pitc
     def excess(angle_deg: float) -> float:
         roll, pitch = _tilt(direction, angle_deg)
         return float(leak_g(roll, pitch, measure)) - limit_g
+
+    from scipy.optimize import brentq  # here: the module's leak measures (MEASURES) stay light to import
 
     top = excess(_MAX_TILT_DEG)
     if top < 0.0:

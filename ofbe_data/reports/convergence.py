@@ -34,6 +34,7 @@ from ofbe_data.dataset.windows import load_segments
 from ofbe_data.io.typedconfig import from_plain
 from ofbe_data.labelling.allan import AllanResult, allan_deviation, combine, white_noise_level
 from ofbe_data.labelling.convergence import (
+    AXES,
     REPORT_FORMAT,
     STATISTICS,
     AxisConvergence,
@@ -44,7 +45,6 @@ from ofbe_data.labelling.convergence import (
 )
 from ofbe_data.labelling.labels import LabelParams, label_session
 
-AXES = ("x", "y", "z")
 PAPER_BAND = (4000, 5000)
 """The paper's range of convergence indices on x, samples."""
 ALLAN_MAX_SAMPLES = 3000

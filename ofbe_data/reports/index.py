@@ -35,12 +35,9 @@ from ofbe_data.core.atomic import write_bytes_atomic
 from ofbe_data.core.errors import OfbeError
 from ofbe_data.dataset.fidelity import AXES, TruthError, label_fidelity, truth_dir_of
 from ofbe_data.labelling.store import read_labels
+from ofbe_data.reports.defaults import TIMINGS_FORMAT
 
 PROG = "ofbe-index"
-DEFAULT_CAMPAIGNS = ("gravity-aligned", "rotated")
-DEFAULT_PROTOCOLS = ("paper-gravity", "paper-rotated", "grouped")
-TIMINGS_FORMAT = '{"stages": {"<stage>": <seconds>, ...}}'
-"""Layout of the ``--timings`` file."""
 
 _IMAGE_LINE = re.compile(r"^\s*!\[[^\]]*\]\([^)]*\)\s*$")
 _LINK = re.compile(r"(!?\[[^\]]*\])\(([^)\s]+)\)")

@@ -33,10 +33,11 @@ from ofbe_data.labelling.smallangle import (
     leak_g,
     threshold_angle,
 )
+from ofbe_data.reports.defaults import SMALL_ANGLE_OUT
 
 FORMAT = "ofbe-small-angle/1"
 """Format tag of ``small_angle.json``."""
-DEFAULT_OUT = Path("reports/small_angle")
+DEFAULT_OUT = SMALL_ANGLE_OUT
 JSON_NAME = "small_angle.json"
 PNG_NAME = "small_angle.png"
 PROFILE_PNG_NAME = "small_angle_profile.png"

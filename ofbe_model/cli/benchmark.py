@@ -5,10 +5,8 @@ from __future__ import annotations
 import argparse
 import inspect
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
-
-import pandas as pd
 
 from ofbe_data.core.cli import (
     add_jobs,
@@ -21,8 +19,6 @@ from ofbe_data.core.cli import (
     with_examples,
 )
 from ofbe_data.core.errors import ConfigError, OfbeError
-from ofbe_data.io.typedconfig import read_section
-from ofbe_model.benchmark.runner import benchmark_params_from, run_protocol
 
 PROG = "ofbe-benchmark"
 
@@ -52,8 +48,9 @@ def _parser() -> argparse.ArgumentParser:
         "--methods level-mean gravity-prior")
 
 
-def _run_options(args: argparse.Namespace) -> dict[str, object]:
-    """``jobs`` and ``scheduler`` for :func:`run_protocol`, as far as it takes them.
+def _run_options(args: argparse.Namespace, run_protocol: Callable[..., object]) -> dict[str, object]:
+    """``jobs`` and ``scheduler`` for ``run_protocol``
+    (:func:`ofbe_model.benchmark.runner.run_protocol`), as far as it takes them.
 
     Raises
     ------
@@ -77,16 +74,26 @@ def _run_options(args: argparse.Namespace) -> dict[str, object]:
 
 @command(PROG)
 def main(argv: Sequence[str] | None = None) -> int:
-    from ofbe_model.benchmark.report import summarise, write_report
+    """Entry point of ``ofbe-benchmark``: 0 written, 1 bad data, 2 usage."""
+    return _run(_parser().parse_args(argv))
 
-    args = _parser().parse_args(argv)
+
+def _run(args: argparse.Namespace) -> int:
+    """``ofbe-benchmark`` on its parsed arguments; pandas and the benchmark's modules are imported
+    here, after parsing and after the libraries' start-up lines are quietened
+    (docs/architecture.md, "Command lines")."""
     quiet_libraries(args.verbose)
+    import pandas as pd
+
+    from ofbe_data.io.typedconfig import read_section
+    from ofbe_model.benchmark.report import summarise, write_report
+    from ofbe_model.benchmark.runner import benchmark_params_from, run_protocol
     try:
         data = dict(read_section(args.params, "benchmark")) if args.params else {}
         if args.methods:
             data["methods"] = list(args.methods)
         params = benchmark_params_from(data, args.params or "command line")
-        options = _run_options(args)
+        options = _run_options(args, run_protocol)
         if args.truth and len(args.truth) != len(args.datasets):
             raise ConfigError("command line", "--truth", f"one per dataset ({len(args.datasets)})",
                               str(len(args.truth)))

@@ -5,7 +5,8 @@
 The command lives in the data package (:mod:`ofbe_data.cli.export`), which never imports this
 package: pyproject.toml registers :data:`TFLITE` and :data:`C_HEADER` in the entry-point group
 ``ofbe.export_formats``, loaded when the command builds its parser. This module imports only
-what the parser needs; TensorFlow and the deploy modules load when a format runs.
+what the parser needs (the registry's :class:`~ofbe_data.calibration.registry.Format`); NumPy,
+the datasets, TensorFlow and the deploy modules load in a format's handler, when it runs.
 """
 
 from __future__ import annotations
@@ -14,11 +15,14 @@ import argparse
 import re
 import tempfile
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import numpy as np
-
-from ofbe_data.calibration.output import ExportFile, ExportUsageError
 from ofbe_data.calibration.registry import Format
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from ofbe_data.calibration.output import ExportFile
 
 __all__ = ["C_HEADER", "TFLITE"]
 
@@ -26,6 +30,10 @@ __all__ = ["C_HEADER", "TFLITE"]
 def _training_windows(args: argparse.Namespace) -> tuple[np.ndarray, str]:
     """The windows a model was trained on, (N, T, 3) m/s², and a description of them; without
     ``--dataset``, the dataset the model card beside SOURCE names (:func:`card_dataset`)."""
+    import numpy as np
+
+    from ofbe_data.calibration.output import ExportUsageError
+
     what = ""
     selected = None
     if args.dataset is None:
@@ -69,6 +77,7 @@ def _training_windows(args: argparse.Namespace) -> tuple[np.ndarray, str]:
 
 
 def _tflite(args: argparse.Namespace) -> list[ExportFile]:
+    from ofbe_data.calibration.output import ExportFile
     from ofbe_model.deploy.tflite import export_tflite
 
     windows, what = _training_windows(args)
@@ -78,6 +87,7 @@ def _tflite(args: argparse.Namespace) -> list[ExportFile]:
 
 
 def _c_header(args: argparse.Namespace) -> list[ExportFile]:
+    from ofbe_data.calibration.output import ExportFile
     from ofbe_model.deploy.c_header import export_c_header
 
     name = re.sub(r"[^A-Za-z0-9_]", "_", args.source.stem) or "gravity_prior"

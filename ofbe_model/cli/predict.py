@@ -14,8 +14,7 @@ from typing import Any
 from ofbe_data.core.cli import EXIT_USAGE, add_verbose, command, fail, quiet_libraries, with_examples
 from ofbe_data.core.errors import OfbeError
 from ofbe_data.io.gravity import G0 as STANDARD_GRAVITY
-from ofbe_model.estimators.base import EstimatorError
-from ofbe_model.predict import DEFAULT_WINDOW, MODEL_FILES, model_files, predict_files, targets, trained_on
+from ofbe_model.deploy.defaults import DEFAULT_WINDOW, MODEL_FILES
 
 PROG = "ofbe-predict"
 MIN_WINDOW = 2
@@ -89,8 +88,18 @@ def _parser() -> argparse.ArgumentParser:
 
 @command(PROG)
 def main(argv: Sequence[str] | None = None) -> int:
-    args = _parser().parse_args(argv)
+    """Entry point of ``ofbe-predict``: 0 every file estimated, 1 a file failed, 2 usage."""
+    return _run(_parser().parse_args(argv))
+
+
+def _run(args: argparse.Namespace) -> int:
+    """``ofbe-predict`` on its parsed arguments; the model's modules are imported here, after
+    parsing and after the libraries' start-up lines are quietened (docs/architecture.md,
+    "Command lines")."""
     quiet_libraries(args.verbose)
+    from ofbe_model.estimators.base import EstimatorError
+    from ofbe_model.predict import model_files, predict_files, targets, trained_on
+
     if args.window_length is not None and args.window_length < MIN_WINDOW:
         return fail(PROG, f"--window-length: expected an integer >= {MIN_WINDOW} (samples), found "
                           f"{args.window_length}", EXIT_USAGE)

@@ -24,7 +24,6 @@ from ofbe_data.core.cli import (
     with_examples,
 )
 from ofbe_data.core.errors import ConfigError, OfbeError
-from ofbe_data.dataset.store import fold_column
 
 PROG = "ofbe-train"
 
@@ -62,9 +61,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     int
         0 on success, 1 on bad data or a failed fit, 2 on a usage or parameter error.
     """
-    args = _parser().parse_args(argv)
-    # TensorFlow is imported only now: --help answers at once, and its start-up lines stay quiet
+    return _run(_parser().parse_args(argv))
+
+
+def _run(args: argparse.Namespace) -> int:
+    """``ofbe-train`` on its parsed arguments; the dataset and training modules (TensorFlow) are
+    imported here, after parsing and after its start-up lines are quietened
+    (docs/architecture.md, "Command lines")."""
     quiet_libraries(args.verbose)
+    from ofbe_data.dataset.store import fold_column
     from ofbe_model.ofbenet.training import TrainingUsageError, read_params, read_seed_count, train_many
 
     try:

@@ -57,12 +57,11 @@ from ofbe_data.core.errors import OfbeError
 from ofbe_data.core.parallel import map_progress
 from ofbe_data.dataset.folds import benchmark_datasets
 from ofbe_data.dataset.reader import LoadedDataset, load_dataset
+from ofbe_model.deploy.defaults import OFBENET_NAME, PRIOR_NAME
 from ofbe_model.estimators.priors import GravityPrior
 from ofbe_model.ofbenet.params import WORKER_ENV, OFBENetParams
 
 CARD_FORMAT = "ofbe-model-card/1"
-OFBENET_NAME = "final.keras"
-PRIOR_NAME = "gravity-prior.json"
 CARD_JSON = "model_card.json"
 CARD_MD = "MODEL_CARD.md"
 SET_NAME = "models.json"
