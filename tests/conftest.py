@@ -35,6 +35,8 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     """Run the longest tests first: the whole-pipeline ones (``e2e``), then the other ``slow``
     ones, then the rest, each group in its collected order. With pytest-xdist's ``--dist
     loadfile`` (pyproject.toml) the workers then take the long files first and the short ones
-    fill in the end, instead of one worker finishing a four-minute file alone."""
+    fill in the end, instead of one worker finishing a four-minute file alone (pyproject.toml's
+    ``--no-loadscope-reorder`` keeps this order; xdist would otherwise hand out the files with the
+    most tests first)."""
     items.sort(key=lambda item: 0 if item.get_closest_marker("e2e") else 1 if item.get_closest_marker("slow")
                else 2)
