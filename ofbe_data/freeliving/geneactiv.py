@@ -149,11 +149,11 @@ def parse_header(path: str | Path, head: bytes) -> BinHeader:
 
 def decode_samples(raw: np.ndarray, header: BinHeader) -> np.ndarray:
     """Calibrated samples (shape (3, n), float32, g) from ``raw`` (shape (n, 6), uint8: 48 bits each)."""
-    b = raw.astype(np.int32)
-    counts = np.empty((3, len(b)), dtype=np.int32)
-    counts[0] = (b[:, 0] << 4) | (b[:, 1] >> 4)
-    counts[1] = ((b[:, 1] & 0x0F) << 8) | b[:, 2]
-    counts[2] = (b[:, 3] << 4) | (b[:, 4] >> 4)
+    b0, b1, b2, b3, b4 = (raw[:, k].astype(np.int16) for k in range(5))  # 12-bit counts fit int16
+    counts = np.empty((3, len(raw)), dtype=np.int16)
+    counts[0] = (b0 << 4) | (b1 >> 4)
+    counts[1] = ((b1 & 0x0F) << 8) | b2
+    counts[2] = (b3 << 4) | (b4 >> 4)
     counts -= (counts & 0x800) << 1  # 12-bit two's complement
     out = counts.astype(np.float32)
     out *= np.float32(100.0)

@@ -145,17 +145,25 @@ def gauss_newton_step(x: np.ndarray, means_g: np.ndarray, dtemp_c: np.ndarray, m
     """One Gauss–Newton step of Σ w_k r_k² from ``x`` (shape (P,)), by the normal equations
     (JᵀWJ)·δ = −JᵀW·r (P × P; the condition rule keeps them far from singular), halved until it
     does not raise the weighted sum (at most 30 halvings)."""
-    r = norm_residuals(x, means_g, dtemp_c, model)
+    return _step(x, norm_residuals(x, means_g, dtemp_c, model), means_g, dtemp_c, model, weights)[0]
+
+
+def _step(x: np.ndarray, r: np.ndarray, means_g: np.ndarray, dtemp_c: np.ndarray, model: str,
+          weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`gauss_newton_step` from ``x`` whose residuals ``r`` are known; returns the new
+    parameters and their residuals (those the step's own check computed, so the iteration
+    computes each once)."""
     jac = residual_jacobian(x, means_g, dtemp_c, 1.0, model)
     weighted = jac * weights[:, None]
     step = np.linalg.solve(weighted.T @ jac, -(weighted.T @ r))
     cost = float(np.sum(weights * r * r))
     for _ in range(30):
         new = x + step
-        if float(np.sum(weights * norm_residuals(new, means_g, dtemp_c, model) ** 2)) <= cost:
-            return new
+        r_new = norm_residuals(new, means_g, dtemp_c, model)
+        if float(np.sum(weights * r_new ** 2)) <= cost:
+            return new, r_new
         step = 0.5 * step
-    return x
+    return x, r
 
 
 def jackknife_covariance(jac: np.ndarray, psi: np.ndarray, slope: np.ndarray, scale_g: float,
@@ -215,11 +223,11 @@ def _reweigh(x: np.ndarray, means_g: np.ndarray, dtemp_c: np.ndarray, model: str
     psi_of = huber_psi if kind == "huber" else bisquare_psi
     fixed = scale_g
     sigma = float("nan")
+    r = norm_residuals(x, means_g, dtemp_c, model)
     for step in range(1, MAX_ITERATIONS + 1):
-        r = norm_residuals(x, means_g, dtemp_c, model)
         sigma = robust_scale(r) if fixed is None else fixed
         _, _, weights = psi_of(r / sigma)
-        new = gauss_newton_step(x, means_g, dtemp_c, model, weights)
+        new, r = _step(x, r, means_g, dtemp_c, model, weights)
         moved = float(np.max(np.abs(new - x)))
         x = new
         if not moved > TOLERANCE:  # also stops on NaN
