@@ -28,15 +28,16 @@ from abc import ABC, abstractmethod
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from ofbe_data.core.checksums import file_sha256
-from ofbe_data.freeliving.actigraph import Gt3xStream, round_half_away
+from ofbe_data.freeliving.actigraph import Gt3xChunk, Gt3xStream, round_half_away
 from ofbe_data.freeliving.axivity import AxivityStream
 from ofbe_data.freeliving.blocks import BadBlock, RawFileError
 from ofbe_data.freeliving.epochs import is_epoch_csv
-from ofbe_data.freeliving.geneactiv import BinStream
+from ofbe_data.freeliving.geneactiv import BinChunk, BinStream
 from ofbe_data.freeliving.hashing import HashingReader
 from ofbe_data.io.detection import Hints, sniff_text
 from ofbe_data.io.formats import read_device_file
@@ -193,7 +194,45 @@ class _HashedFile:
         self._raw.close()
 
 
-class BinWearable(Wearable):
+class _StreamWearable(Wearable):
+    """A wearable read by one of ofbe's block streams (``.bin``, ``.gt3x``) through a
+    :class:`_HashedFile`: the stream is opened by :meth:`_open`, each of its chunks becomes
+    :class:`Samples` by :meth:`_samples`, and :meth:`_bad` says what it skipped."""
+
+    _file: _HashedFile
+    _stream: Any
+
+    def _open(self, path: Path, stream_type: Any) -> None:
+        self._file = _HashedFile(path)
+        try:
+            self._stream = stream_type(path, self._file.reader)
+        except BaseException:
+            self._file.close()
+            raise
+
+    @abstractmethod
+    def _samples(self, chunk: Any, time_s: np.ndarray) -> Samples:
+        """One chunk of the stream as samples, its times ``time_s`` (s) already converted."""
+
+    @abstractmethod
+    def _bad(self) -> tuple[BadBlock, ...]:
+        """The pages or records the stream skipped or cut."""
+
+    def chunks(self) -> Iterator[Samples]:
+        before: float | None = None
+        try:
+            for c in self._stream:
+                t = c.time_ns.astype(np.float64) / 1e9
+                self._count_gaps(t, before)
+                before = float(t[-1])
+                yield self._samples(c, t)
+            self.sha256 = self._file.finish()
+        finally:
+            self._file.close()
+            self.bad_blocks = self._bad()
+
+
+class BinWearable(_StreamWearable):
     """A GENEActiv ``.bin`` file, page by page (:mod:`ofbe_data.freeliving.geneactiv`).
 
     Raises
@@ -204,12 +243,7 @@ class BinWearable(Wearable):
     """
 
     def __init__(self, path: Path) -> None:
-        self._file = _HashedFile(path)
-        try:
-            self._stream = BinStream(path, self._file.reader)
-        except BaseException:
-            self._file.close()
-            raise
+        self._open(path, BinStream)
         meta = self._stream.header.metadata
         ident, caps = meta.get("Device Identity", {}), meta.get("Device Capabilities", {})
         conf = meta.get("Configuration Info", {})
@@ -224,21 +258,14 @@ class BinWearable(Wearable):
                                           float(rate), None if rng is None else abs(rng),
                                           _offset_s(conf.get("Time Zone")), True))
 
-    def chunks(self) -> Iterator[Samples]:
-        before: float | None = None
-        try:
-            for c in self._stream:
-                t = c.time_ns.astype(np.float64) / 1e9
-                self._count_gaps(t, before)
-                before = float(t[-1])
-                yield Samples(t, c.acc_g.astype(np.float64), c.temperature_c.astype(np.float64))
-            self.sha256 = self._file.finish()
-        finally:
-            self._file.close()
-            self.bad_blocks = tuple(self._stream.bad_pages)
+    def _samples(self, chunk: BinChunk, time_s: np.ndarray) -> Samples:
+        return Samples(time_s, chunk.acc_g.astype(np.float64), chunk.temperature_c.astype(np.float64))
+
+    def _bad(self) -> tuple[BadBlock, ...]:
+        return tuple(self._stream.bad_pages)
 
 
-class Gt3xWearable(Wearable):
+class Gt3xWearable(_StreamWearable):
     """An ActiGraph ``.gt3x`` file, record by record (:mod:`ofbe_data.freeliving.actigraph`).
 
     Raises
@@ -249,12 +276,7 @@ class Gt3xWearable(Wearable):
     """
 
     def __init__(self, path: Path) -> None:
-        self._file = _HashedFile(path)
-        try:
-            self._stream = Gt3xStream(path, self._file.reader)
-        except BaseException:
-            self._file.close()
-            raise
+        self._open(path, Gt3xStream)
         info = self._stream.info
         device = f"ActiGraph {info.get('Device Type', '')}".strip()
         rng = _number(info.get("Acceleration Max"))
@@ -263,18 +285,11 @@ class Gt3xWearable(Wearable):
                                           None if rng is None else abs(rng), _offset_s(info.get("TimeZone")),
                                           False))
 
-    def chunks(self) -> Iterator[Samples]:
-        before: float | None = None
-        try:
-            for c in self._stream:
-                t = c.time_ns.astype(np.float64) / 1e9
-                self._count_gaps(t, before)
-                before = float(t[-1])
-                yield Samples(t, c.acc_g, None)
-            self.sha256 = self._file.finish()
-        finally:
-            self._file.close()
-            self.bad_blocks = tuple(self._stream.bad_records)
+    def _samples(self, chunk: Gt3xChunk, time_s: np.ndarray) -> Samples:
+        return Samples(time_s, chunk.acc_g, None)
+
+    def _bad(self) -> tuple[BadBlock, ...]:
+        return tuple(self._stream.bad_records)
 
 
 class CsvWearable(Wearable):
