@@ -1,10 +1,13 @@
 """One registry per extension point, every list derived from it: a toy device format and a toy
 estimator, registered here and removed afterwards, appear in every list that names the formats
 or the estimators (manifest validation, ``init``'s detection, the reference formats of ``init``
-and the simulator, the docs test's names; the benchmark's default methods)."""
+and the simulator, the docs test's names; the benchmark's default methods). And adding one is its
+own file: a toy format, estimator or export module dropped into a copy of its package is found
+with no other file edited (:func:`ofbe_data.core.plugins.import_submodules`)."""
 
 from __future__ import annotations
 
+import shutil
 import subprocess
 import sys
 import textwrap
@@ -96,7 +99,7 @@ def _manifest(folder: Path, fmt: str) -> Path:
     return folder / "session.yaml"
 
 
-def test_the_built_in_formats_in_registration_order() -> None:
+def test_the_built_in_formats_in_their_order() -> None:
     assert [f.name for f in formats()] == ["ofbe-logger", "mscip-csv", "mscip-bin", "csv"]
     assert format_choices() == ("ofbe-logger", "mscip-csv", "mscip-bin", "csv")
     assert reference_formats() == ("mscip-csv", "mscip-bin")
@@ -110,7 +113,8 @@ def test_a_registered_format_is_one_the_manifest_takes(tmp_path: Path, toy_forma
     assert rec.n == 200 and rec.fs_hz == pytest.approx(100.0)
     with pytest.raises(ManifestError) as exc:
         load_manifest(_manifest(tmp_path, "toy-loger"))
-    assert "expected one of ofbe-logger, mscip-csv, mscip-bin, csv, toy-logger" in str(exc.value)
+    # a format left at the default order comes after the built-in ones, before the generic csv
+    assert "expected one of ofbe-logger, mscip-csv, mscip-bin, toy-logger, csv" in str(exc.value)
 
 
 def test_without_the_registration_the_manifest_refuses_it(tmp_path: Path) -> None:
@@ -182,7 +186,8 @@ def test_the_built_in_estimators_give_the_default_methods() -> None:
 
 def test_a_registered_estimator_is_one_the_benchmark_runs_by_default(toy_estimator: type[Estimator]) -> None:
     assert "toy-mean" in estimator_names()
-    assert default_methods()[-1] == "toy-mean" and BenchmarkParams().methods[-1] == "toy-mean"
+    # an estimator left at the default order comes after the built-in ones, before the oracle
+    assert default_methods()[-2:] == BenchmarkParams().methods[-2:] == ("toy-mean", "oracle")
     windows = np.tile([0.1, -0.2, 9.9], (2, 50, 1))
     meta = pd.DataFrame({"device": ["d", "d"], "g_local": [9.8, 9.8]})
     np.testing.assert_allclose(make_estimator("toy-mean").predict(windows, meta), [[0.1, -0.2, 0.1]] * 2,
@@ -195,3 +200,103 @@ def test_the_estimator_names_list_ofbenet_without_starting_tensorflow() -> None:
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300,
                          check=True)
     assert out.stdout.split() == ["True", "False", "False"]
+
+
+# -- extension by one file: a module dropped into a copy of the package ---------------------------
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _copy_with(tmp_path: Path, package: str, files: dict[str, str]) -> Path:
+    """A copy of ``package`` (ofbe_data or ofbe_model) under ``tmp_path`` with ``files`` (path
+    inside the package → text) added; put ``tmp_path`` first on PYTHONPATH to import it."""
+    shutil.copytree(ROOT / package, tmp_path / package, ignore=shutil.ignore_patterns("__pycache__"))
+    for rel, text in files.items():
+        (tmp_path / package / rel).write_text(textwrap.dedent(text))
+    return tmp_path
+
+
+def _run(path: Path, code: str) -> list[str]:
+    env = {k: v for k, v in __import__("os").environ.items() if k != "PYTHONPATH"}
+    out = subprocess.run([sys.executable, "-c", textwrap.dedent(code)], capture_output=True, text=True,
+                         timeout=600, cwd=path, env={**env, "PYTHONPATH": str(path)})
+    assert out.returncode == 0, out.stderr
+    return out.stdout.splitlines()
+
+
+def test_a_format_module_dropped_into_the_package_is_a_format(tmp_path: Path) -> None:
+    root = _copy_with(tmp_path, "ofbe_data", {"io/formats/toy_logger.py": '''
+        from ofbe_data.io.formats.generic_csv import read_generic_csv
+        from ofbe_data.io.device_options import CsvMapping
+        from ofbe_data.io.formats.registry import Format, register_format
+
+        M = CsvMapping(columns={"t": "t", "ax": "ax", "ay": "ay", "az": "az"}, skip_rows=1)
+        register_format(Format(name="toy-logger", reader=lambda path, d: read_generic_csv(path, M, d.id),
+                               reference=True))
+        '''})
+    out = _run(root, """
+        import ofbe_data.io.formats as f
+        from ofbe_data.io.manifest import format_choices
+        print(f.__file__)
+        print(*format_choices())
+        print(*f.reference_formats())
+        """)
+    assert out == [str(root / "ofbe_data" / "io" / "formats" / "__init__.py"),
+                   "ofbe-logger mscip-csv mscip-bin toy-logger csv", "mscip-csv mscip-bin toy-logger"]
+
+
+def test_an_estimator_module_dropped_into_the_package_is_a_default_method(tmp_path: Path) -> None:
+    root = _copy_with(tmp_path, "ofbe_model", {"estimators/toy_mean.py": '''
+        from typing import ClassVar
+        from ofbe_model.estimators.base import Estimator, register
+
+        @register
+        class ToyMean(Estimator):
+            name: ClassVar[str] = "toy-mean"
+            order: ClassVar[int] = 15
+
+            def predict(self, windows, meta):
+                return windows.mean(axis=1)
+        '''})
+    out = _run(root, """
+        from ofbe_model.benchmark.runner import default_methods
+        print(*default_methods())
+        """)
+    assert out == ["level-mean toy-mean ls-trf ls-trf-as-written ls-trf-bounded won2009 prior-mean "
+                   "gravity-prior gravity-prior-direction ofbenet oracle"]
+
+
+def test_an_export_module_dropped_into_the_package_is_a_command(tmp_path: Path) -> None:
+    root = _copy_with(tmp_path, "ofbe_data", {"calibration/exports/toy_txt.py": '''
+        from ofbe_data.calibration.output import ExportFile
+        from ofbe_data.calibration.registry import Format
+
+        FORMAT = Format(lambda args: [], "a toy text file", examples=("ofbe-export toy SOURCE --out x/",),
+                        name="toy", order=45)
+        '''})
+    out = _run(root, """
+        import sys
+        from ofbe_data.calibration.exports import CALIBRATION_FORMATS
+        from ofbe_data.cli.export import main
+        print(*CALIBRATION_FORMATS)
+        sys.argv = ["ofbe-export", "toy", "--help"]
+        main()
+        """)
+    assert out[0] == "imucal kalibr ros ggir toy json"
+    assert "a toy text file" in out and "  ofbe-export toy SOURCE --out x/" in out
+
+
+def test_every_public_module_is_imported_in_name_order(tmp_path: Path) -> None:
+    pkg = tmp_path / "toypkg"
+    (pkg / "sub").mkdir(parents=True)
+    (pkg / "__init__.py").write_text("from ofbe_data.core.plugins import import_submodules\n"
+                                     "SEEN = []\nMODULES = import_submodules(__name__)\n")
+    for name in ("b", "a", "_private"):
+        (pkg / f"{name}.py").write_text(f"from toypkg import SEEN\nSEEN.append({name!r})\n")
+    (pkg / "sub" / "__init__.py").write_text("from toypkg import SEEN\nSEEN.append('sub')\n")
+    out = _run(tmp_path, """
+        import toypkg
+        print(*toypkg.SEEN)
+        print(*(m.__name__ for m in toypkg.MODULES))
+        """)
+    assert out == ["a b", "toypkg.a toypkg.b"]

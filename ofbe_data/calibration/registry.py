@@ -1,7 +1,8 @@
 """The formats of ``ofbe-export``: what a format is (:class:`Format`) and how formats that live
 outside this package register themselves (the entry-point group :data:`ENTRY_POINT_GROUP`).
 
-The calibration formats are this package's own (:data:`ofbe_data.calibration.exports.CALIBRATION_FORMATS`).
+The calibration formats are this package's own, one module each in :mod:`ofbe_data.calibration.exports`
+(:data:`~ofbe_data.calibration.exports.CALIBRATION_FORMATS`).
 Other packages add theirs without this package importing them: an entry point in their
 ``pyproject.toml``::
 
@@ -21,7 +22,7 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import KW_ONLY, dataclass
 from importlib.metadata import entry_points
 from typing import TYPE_CHECKING
 
@@ -59,6 +60,14 @@ class Format:
         Command lines that use the format.
     reads_raw
         Whether the format takes ``--raw`` (the campaign's raw folder).
+    name
+        ``FORMAT`` on the command line, for a format of this package
+        (:mod:`ofbe_data.calibration.exports`); an entry point's format is named by its entry
+        point, and a name given here must be the same.
+    order
+        Where a format of this package comes in ``ofbe-export --help`` and every list of formats:
+        ascending, ties by name (the built-in ones take 10–50). The formats of entry points follow
+        them, by name.
     """
 
     handler: Callable[[argparse.Namespace], list[ExportFile]]
@@ -66,6 +75,9 @@ class Format:
     options: Callable[[argparse.ArgumentParser], None] | None = None
     examples: tuple[str, ...] = ()
     reads_raw: bool = True
+    _: KW_ONLY
+    name: str = ""
+    order: int = 100
 
 
 @dataclass(frozen=True)
@@ -125,5 +137,8 @@ def plugin_formats(group: str = ENTRY_POINT_GROUP) -> tuple[dict[str, Format], d
         if not isinstance(found, Format):
             raise ExportRegistryError(f"entry point {ep.name} = {ep.value!r} of {group}: expected a Format "
                                       f"(ofbe_data.calibration.registry), found {type(found).__name__}")
+        if found.name not in ("", ep.name):
+            raise ExportRegistryError(f"entry point {ep.name} = {ep.value!r} of {group}: expected a Format "
+                                      f"named {ep.name!r} or unnamed, found one named {found.name!r}")
         formats[ep.name] = found
     return formats, unavailable

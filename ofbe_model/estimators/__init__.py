@@ -5,14 +5,17 @@ lists them. One module per family: :mod:`~ofbe_model.estimators.physics` (level-
 ls-trf, won2009), :mod:`~ofbe_model.estimators.priors` (prior-mean, gravity-prior),
 :mod:`~ofbe_model.estimators.oracle` (oracle), with what they share in
 :mod:`~ofbe_model.estimators.common`; OFBENet in :mod:`ofbe_model.ofbenet`. Importing this
-package registers them all: each family module registers its estimators (``@register``) when
-imported here, and OFBENet, whose module starts TensorFlow, is registered by name and imported
-on first use (:func:`~ofbe_model.estimators.base.register_lazy`). The registration order is the
-order of the benchmark's default rows. May import ``ofbe_data`` (never its command lines).
+package imports every public module in it (:func:`ofbe_data.core.plugins.import_submodules`), and
+each family module registers its estimators (``@register``); OFBENet, whose module starts
+TensorFlow, is registered by name in :mod:`~ofbe_model.estimators.ofbenet` and imported on first
+use (:func:`~ofbe_model.estimators.base.register_lazy`). A new estimator is one new module: no
+list to edit. The benchmark's default rows follow each estimator's ``order``. May import
+``ofbe_data`` (never its command lines).
 """
 
 from __future__ import annotations
 
+from ofbe_data.core.plugins import import_submodules
 from ofbe_model.estimators.base import (
     Estimator,
     EstimatorError,
@@ -24,16 +27,9 @@ from ofbe_model.estimators.base import (
     unregister,
 )
 
-# The built-in estimators, registered in this order (the benchmark's default rows): the physics
-# baselines, the priors, OFBENet, and last the oracle, which reads the simulator's truth.
-# isort: off
-from ofbe_model.estimators import physics  # noqa: E402, F401
-from ofbe_model.estimators import priors  # noqa: E402, F401
-
-register_lazy("ofbenet", "ofbe_model.ofbenet.network")
-
-from ofbe_model.estimators import oracle  # noqa: E402, F401
-# isort: on
+# Every public module here is imported, and each family module registers its estimators: adding an
+# estimator is adding its module. The benchmark's default rows follow each one's Estimator.order.
+import_submodules(__name__)
 
 __all__ = ["Estimator", "EstimatorError", "estimator_names", "make_estimator", "register", "register_lazy",
            "registered_names", "unregister"]

@@ -37,10 +37,15 @@ class Estimator:
         Registry name (``level-mean``, ``ls-trf``...).
     needs_fit
         Whether :meth:`fit` learns anything (physics-only estimators return ``self``).
+    order
+        Where the estimator comes in :func:`registered_names` (the benchmark's default rows):
+        ascending, ties by name. The built-in ones take 10–60 and the oracle :data:`LAST`; a new
+        estimator left at the default comes after them and before the oracle.
     """
 
     name: ClassVar[str] = ""
     needs_fit: ClassVar[bool] = False
+    order: ClassVar[int] = 100
 
     def fit(self, windows: np.ndarray, labels: np.ndarray, meta: pd.DataFrame) -> Estimator:
         """Learn from training windows.
@@ -113,10 +118,14 @@ def check_inputs(windows: np.ndarray, meta: pd.DataFrame, labels: np.ndarray | N
         raise EstimatorError(f"labels: expected shape ({w.shape[0]}, 3), found {np.asarray(labels).shape}")
 
 
+LAST = 1000
+"""The :attr:`Estimator.order` of the oracle, which reads the simulator's truth: listed last."""
+
 E = TypeVar("E", bound=type[Estimator])
 _REGISTRY: dict[str, type[Estimator] | str] = {}
-"""Name → the estimator class, or the module that defines it (registered lazily), in the order
-of registration."""
+"""Name → the estimator class, or the module that defines it (registered lazily)."""
+_ORDER: dict[str, int] = {}
+"""Name → its :attr:`Estimator.order`."""
 
 
 def register(cls: E) -> E:
@@ -124,19 +133,24 @@ def register(cls: E) -> E:
     if not cls.name:
         raise EstimatorError(f"{cls.__name__}: expected a non-empty class attribute 'name'")
     _REGISTRY[cls.name] = cls
+    _ORDER[cls.name] = cls.order
     return cls
 
 
-def register_lazy(name: str, module: str) -> None:
+def register_lazy(name: str, module: str, order: int = Estimator.order) -> None:
     """Make estimator ``name`` available before its module is imported: ``make_estimator(name)``
-    imports ``module`` (dotted), whose ``@register`` then registers the class. For an estimator
-    whose module is heavy to import (OFBENet: TensorFlow). No effect when ``name`` is registered."""
-    _REGISTRY.setdefault(name, module)
+    imports ``module`` (dotted), whose ``@register`` then registers the class (whose ``order``
+    should be ``order``). For an estimator whose module is heavy to import (OFBENet: TensorFlow).
+    No effect when ``name`` is registered."""
+    if name not in _REGISTRY:
+        _REGISTRY[name] = module
+        _ORDER[name] = order
 
 
 def unregister(name: str) -> None:
     """Remove an estimator (a plug-in's, or a test's toy estimator); no error when absent."""
     _REGISTRY.pop(name, None)
+    _ORDER.pop(name, None)
 
 
 def estimator_names() -> tuple[str, ...]:
@@ -145,8 +159,8 @@ def estimator_names() -> tuple[str, ...]:
 
 
 def registered_names() -> tuple[str, ...]:
-    """Registered names in the order they were registered (the benchmark's default rows)."""
-    return tuple(_REGISTRY)
+    """Registered names by :attr:`Estimator.order`, ties by name (the benchmark's default rows)."""
+    return tuple(sorted(_REGISTRY, key=lambda n: (_ORDER[n], n)))
 
 
 def make_estimator(name: str, **params: Any) -> Estimator:

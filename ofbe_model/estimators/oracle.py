@@ -12,7 +12,7 @@ from typing import Any, ClassVar
 import numpy as np
 import pandas as pd
 
-from ofbe_model.estimators.base import Estimator, EstimatorError, check_inputs, register
+from ofbe_model.estimators.base import LAST, Estimator, EstimatorError, check_inputs, register
 from ofbe_model.estimators.common import (
     TRUTH_FORMAT,
     check_fitted,
@@ -177,6 +177,7 @@ class Oracle(Estimator):
     """
 
     name: ClassVar[str] = "oracle"
+    order: ClassVar[int] = LAST
     needs_fit: ClassVar[bool] = True
 
     def __init__(self, truth_dir: str | None = None) -> None:

@@ -39,6 +39,7 @@ class LevelMean(Estimator):
     """
 
     name: ClassVar[str] = "level-mean"
+    order: ClassVar[int] = 10
     needs_fit: ClassVar[bool] = False
     per_window: ClassVar[bool] = True
     """Each window's estimate depends on that window and its g_local alone (the benchmark
@@ -169,6 +170,7 @@ class LSTRF(Estimator):
     """
 
     name: ClassVar[str] = "ls-trf"
+    order: ClassVar[int] = 20
     needs_fit: ClassVar[bool] = False
     per_window: ClassVar[bool] = True  # see LevelMean.per_window
 
@@ -317,6 +319,7 @@ class Won2009(Estimator):
     """
 
     name: ClassVar[str] = "won2009"
+    order: ClassVar[int] = 30
     needs_fit: ClassVar[bool] = False
     per_window: ClassVar[bool] = True  # see LevelMean.per_window
 

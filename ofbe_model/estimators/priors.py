@@ -51,6 +51,7 @@ class PriorMean(Estimator):
     """
 
     name: ClassVar[str] = "prior-mean"
+    order: ClassVar[int] = 40
     needs_fit: ClassVar[bool] = True
 
     def fit(self, windows: np.ndarray, labels: np.ndarray, meta: pd.DataFrame) -> PriorMean:
@@ -325,6 +326,7 @@ class GravityPrior(Estimator):
     """
 
     name: ClassVar[str] = "gravity-prior"
+    order: ClassVar[int] = 50
     needs_fit: ClassVar[bool] = True
 
     def __init__(self, per_device: bool = True, min_std_mg: float = 0.5, min_obs_std_mg: float = 0.05,

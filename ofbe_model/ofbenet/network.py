@@ -186,8 +186,7 @@ class OFBENet(Estimator):
     ----------
     pool_size, dense_units, dense_activation, dropout, input_scaling, target_scaling, max_epochs,
     validation_split, learning_rate, batch_size, lr_factor, lr_patience, es_patience, seed, jit_compile
-        As :class:`OFBENetParams` (same names, same defaults); stored unchanged and checked in
-        :meth:`fit`.
+        As :class:`OFBENetParams` (same names, same defaults); stored unchanged, checked in :meth:`fit`.
 
     Attributes
     ----------
@@ -208,6 +207,7 @@ class OFBENet(Estimator):
     """
 
     name: ClassVar[str] = "ofbenet"
+    order: ClassVar[int] = 60
     needs_fit: ClassVar[bool] = True
 
     def __init__(self, *, pool_size: int = OFBENetParams.pool_size,

@@ -48,7 +48,8 @@ def _module_file(module: str) -> str | None:
 
 def _imported_files(entry: str) -> set[str]:
     """Every ofbe_data / ofbe_model source file reachable by imports from ``entry``, with the
-    ``__init__.py`` of every package above each (importing ``a.b.c`` runs ``a`` and ``a.b`` first)."""
+    ``__init__.py`` of every package above each (importing ``a.b.c`` runs ``a`` and ``a.b`` first)
+    and every public module of a package that imports them all (``import_submodules``)."""
     todo, seen = [entry], set()
     while todo:
         rel = todo.pop()
@@ -63,6 +64,11 @@ def _imported_files(entry: str) -> set[str]:
         # a package's lazy ``__getattr__`` (ofbe_data.load_dataset) imports only when used
         tree.body = [n for n in tree.body if not (isinstance(n, ast.FunctionDef) and n.name == "__getattr__")]
         for node in ast.walk(tree):
+            if (isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
+                    and node.func.id == "import_submodules"):
+                todo += [str(p.relative_to(ROOT)) for p in sorted((ROOT / rel).parent.glob("*.py"))
+                         if not p.name.startswith("_")]
+                continue
             if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith(("ofbe_data",
                                                                                             "ofbe_model")):
                 names = [node.module, *(f"{node.module}.{a.name}" for a in node.names)]

@@ -55,7 +55,7 @@ from ofbe_data.io.formats.filebytes import (
     read_file_bytes,
     split_first_line,
 )
-from ofbe_data.io.formats.registry import Format, register_format
+from ofbe_data.io.formats.registry import LAST, Format, register_format
 from ofbe_data.io.formats.writing import assemble, csv_body, fixed_point
 from ofbe_data.io.gravity import G0
 from ofbe_data.io.recording import (
@@ -490,4 +490,5 @@ def _read(path: Path, device: DeviceSpec) -> Recording:
     return read_generic_csv(path, device.csv, device.id)
 
 
-register_format(Format(name="csv", reader=_read))  # init: any text file no other format recognises
+# init: any text file no other format recognises, so it comes last
+register_format(Format(name="csv", reader=_read, order=LAST))

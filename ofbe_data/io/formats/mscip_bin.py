@@ -590,4 +590,5 @@ def _read(path: Path, device: DeviceSpec) -> Recording:
     return read_mscip_bin(path, opts.sample_rate_hz, opts.acc_unit, device.id)
 
 
-register_format(Format(name="mscip-bin", reader=_read, reference=True))  # init: a binary file with A5 A5 sync
+# init: a binary file with A5 A5 sync
+register_format(Format(name="mscip-bin", reader=_read, reference=True, order=30))

@@ -146,4 +146,4 @@ def sniff_mscip_csv(lines: Sequence[str], i: int) -> Sniffed | None:
 
 
 register_format(Format(name="mscip-csv", reader=lambda path, device: read_mscip_csv(path, device.id),
-                       reference=True, signature="MSCIP export lines", sniff=sniff_mscip_csv))
+                       reference=True, signature="MSCIP export lines", sniff=sniff_mscip_csv, order=20))

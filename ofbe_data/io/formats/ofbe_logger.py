@@ -190,4 +190,4 @@ def sniff_ofbe_logger(lines: Sequence[str], i: int) -> Sniffed | None:
 
 
 register_format(Format(name="ofbe-logger", reader=lambda path, device: read_ofbe_logger(path, device.id),
-                       signature="'# ofbe-logger' header", sniff=sniff_ofbe_logger))
+                       signature="'# ofbe-logger' header", sniff=sniff_ofbe_logger, order=10))

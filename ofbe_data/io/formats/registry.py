@@ -71,6 +71,11 @@ class Format:
     sniff
         Recognises the signature line (:data:`TextSniffer`); None for a format ``init`` finds
         otherwise (a binary stream, or the generic csv every other text file is).
+    order
+        Where the format comes in every list of formats (the manifest's error messages, the order
+        ``init`` tries the sniffers in): ascending, ties by name. The built-in formats take 10–30,
+        the generic csv, which ``init`` takes any other text file for, :data:`LAST`; a new format
+        left at the default comes after the built-in ones and before the generic csv.
     """
 
     name: str
@@ -78,6 +83,11 @@ class Format:
     reference: bool = False
     signature: str | None = None
     sniff: TextSniffer | None = None
+    order: int = 100
+
+
+LAST = 1000
+"""The :attr:`Format.order` of the generic csv, the fallback listed last."""
 
 
 _FORMATS: dict[str, Format] = {}
@@ -96,9 +106,9 @@ def unregister_format(name: str) -> None:
 
 
 def formats() -> tuple[Format, ...]:
-    """The registered formats in the order they were registered: the order the manifest's error
+    """The registered formats by :attr:`Format.order` (ties by name): the order the manifest's error
     messages list them in and ``init`` tries their sniffers in."""
-    return tuple(_FORMATS.values())
+    return tuple(sorted(_FORMATS.values(), key=lambda f: (f.order, f.name)))
 
 
 def format_names() -> tuple[str, ...]:
@@ -107,9 +117,9 @@ def format_names() -> tuple[str, ...]:
 
 
 def reference_formats() -> tuple[str, ...]:
-    """Names of the formats a reference IMU's files come in (:attr:`Format.reference`), in
-    registration order."""
-    return tuple(f.name for f in _FORMATS.values() if f.reference)
+    """Names of the formats a reference IMU's files come in (:attr:`Format.reference`), in the order
+    of :func:`formats`."""
+    return tuple(f.name for f in formats() if f.reference)
 
 
 def read_device_file(path: str | Path, device: DeviceSpec) -> Recording:
