@@ -26,7 +26,7 @@ from ofbe_data.core.errors import ManifestError, OfbeError, RawFormatError
 from ofbe_data.io.formats.mscip_csv import read_mscip_csv
 from ofbe_data.io.formats.ofbe_logger import read_ofbe_logger, write_ofbe_logger
 from ofbe_data.io.gravity import G0
-from ofbe_data.io.manifest import load_manifest
+from ofbe_data.io.manifest import format_choices, load_manifest
 from ofbe_data.io.recording import SkippedLine
 from ofbe_data.labelling.labels import LabelParams, label_session
 from ofbe_data.labelling.store import read_labels
@@ -292,8 +292,9 @@ MANIFEST_ERRORS = [
                  "the session folder, found '../sparkfun-1.csv', which escapes it",
                  id="file-path-escapes-session"),
     pytest.param(GA, "format: ofbe-logger}\nrecordings", "format: adxl-raw}\nrecordings",
-                 "{manifest}:9: devices.sparkfun-2.format: expected one of ofbe-logger, mscip-csv, "
-                 "mscip-bin, csv, found str 'adxl-raw'", id="unknown-device-format"),
+                 # every registered format, in their order (a new format module joins the list)
+                 f"{{manifest}}:9: devices.sparkfun-2.format: expected one of {', '.join(format_choices())}, "
+                 "found str 'adxl-raw'", id="unknown-device-format"),
 ]
 
 

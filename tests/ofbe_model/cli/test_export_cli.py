@@ -125,5 +125,5 @@ def test_without_the_model_package_its_formats_are_absent_and_named(tmp_path, mo
     with pytest.raises(SystemExit):
         export.main(["--help"])
     text = capsys.readouterr().out
-    assert "imucal, kalibr, ros, ggir, json\n" in text and "tflite" not in text
+    assert f"{', '.join(CALIBRATION_FORMATS)}\n" in text and "tflite" not in text
     assert not (tmp_path / "fw").exists()
