@@ -1,8 +1,8 @@
 """End to end: the whole DVC pipeline on the `tiny` profile in a copy of the repository.
 
 Checks that ``dvc repro`` runs every stage, that the outputs have their schemas, that a
-second ``dvc repro`` is a no-op, and that forcing the whole pipeline again gives
-byte-identical labels and datasets and identical benchmark metrics. About four minutes.
+second ``dvc repro`` is a no-op, and that forcing the data stages again gives byte-identical raw
+files, labels and datasets. About three minutes.
 """
 
 from __future__ import annotations
@@ -85,7 +85,7 @@ def test_every_stage_ran_and_outputs_have_their_schemas(tiny) -> None:
         assert doc["protocol"] == protocol
         for ds in doc["datasets"].values():
             assert {"ofbenet", "ls-trf", "won2009", "oracle"} <= set(ds["methods"])
-            assert len(ds["methods"]["ofbenet"]["rmse_folds"]) == 5
+            assert len(ds["methods"]["ofbenet"]["rmse_folds"]) == 3  # the tiny profile's folds
     # the deployable models and their cards, as the benchmark evaluates them: the gravity-aligned set
     # pooled, each rotated board on its own (a model set that ofbe-predict picks from per device)
     index = json.loads((tiny / "models" / "rotated" / "models.json").read_text())
@@ -122,14 +122,12 @@ def test_second_repro_is_a_no_op(tiny) -> None:
 
 def test_forced_rerun_is_reproducible(tiny) -> None:
     outs = _locked_outs(tiny)
-    metrics = {p: (tiny / "reports" / "benchmark" / p / "benchmark.json").read_bytes()
-               for p in ("paper-gravity", "paper-rotated", "grouped")}
-    # the data stages and the benchmark again, from scratch (train's weights are the same whatever the
-    # run, tested in tests/ofbe_model; forcing it too doubled this test's time for no new evidence)
+    # the data stages again, from scratch: the data products are byte-identical. (Train's weights
+    # are the same whatever the run and the scheduler, and the benchmark's predictions and report
+    # the same bytes again: tests/ofbe_model and test_dask_e2e.py; forcing those stages here too
+    # doubled this test's time for no new evidence.)
     _run(tiny, sys.executable, "-m", "dvc", "repro", "--force", "--single-item", "simulate", "label",
-         "datasets", "benchmark")
+         "datasets")
     again = _locked_outs(tiny)
     for path in ("raw/gravity-aligned", "raw/rotated", "processed/labels", "processed/datasets"):
         assert again[path] == outs[path], path
-    for p, data in metrics.items():
-        assert (tiny / "reports" / "benchmark" / p / "benchmark.json").read_bytes() == data, p

@@ -160,7 +160,9 @@ def test_profiles_merge_over_params(tmp_path):
     doc["profile"] = "tiny"
     (tmp_path / "params.yaml").write_text(yaml.safe_dump(doc))
     tiny = load_params(tmp_path / "params.yaml")
-    assert tiny["dataset"]["window_length"] == 1000 and tiny["dataset"]["n_folds"] == 5
+    # the profile's keys win; the others stay params.yaml's
+    assert tiny["dataset"]["window_length"] == 1000 and tiny["dataset"]["n_folds"] == 3
+    assert tiny["dataset"]["test_per_fold"] == paper["dataset"]["test_per_fold"] == 9
     assert tiny["simulate"]["campaigns"]["rotated"]["overrides"]["sessions"] == 16
     with resolved_params_file(tmp_path / "params.yaml") as path:
         assert yaml.safe_load(open(path))["label"]["min_samples"] == 2000

@@ -26,20 +26,15 @@ from ofbe_data.io.manifest import load_manifest
 from ofbe_data.labelling.batch import expand_sessions, label_sessions
 from ofbe_data.labelling.labels import LabelParams
 from ofbe_data.labelling.store import read_labels
-from ofbe_data.simulator import load_config, simulate_campaign
 from tests.helpers.exports import kalibr_imu_parameters
 from tests.helpers.ggir_replica import backup_cal_coef, read_myacc_csv
 
 
 @pytest.fixture(scope="module")
-def campaign(tmp_path_factory) -> Path:
-    tmp = tmp_path_factory.mktemp("export")
-    simulate_campaign(load_config("tiny-multi-position"), tmp / "raw" / "mp", seed=1, jobs=1, progress=False)
-    simulate_campaign(load_config("tiny-gravity-aligned"), tmp / "raw" / "ga", seed=2, jobs=1, progress=False)
-    outcomes = label_sessions(expand_sessions([tmp / "raw" / "mp", tmp / "raw" / "ga"]),
-                              LabelParams(min_samples=1000), tmp / "labels", jobs=1, progress=False)
-    assert [o.error for o in outcomes if o.error] == []
-    return tmp
+def campaign(tiny_labelled) -> Path:
+    """The session's tiny labelled campaigns (conftest.py): ``raw/mp``, ``raw/ga``, ``labels/mp``,
+    ``labels/ga``."""
+    return tiny_labelled
 
 
 def _run(capsys, *argv: str | Path) -> tuple[int, str, str]:

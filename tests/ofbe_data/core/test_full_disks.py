@@ -27,9 +27,6 @@ from ofbe_data.cli import label as label_cli
 from ofbe_data.cli import simulate as simulate_cli
 from ofbe_data.core.cli import EXIT_INTERRUPTED, EXIT_IO, public_path
 from ofbe_data.dataset import writer
-from ofbe_data.labelling.batch import expand_sessions, label_sessions
-from ofbe_data.labelling.labels import LabelParams
-from ofbe_data.simulator import load_config, simulate_campaign
 from tests.helpers.paths import ROOT
 
 pytestmark = pytest.mark.slow
@@ -88,16 +85,10 @@ _NO_SPACE = r"No space left on device \(\d+\.\d MB free on its disk\)"
 
 
 @pytest.fixture(scope="module")
-def labelled(tmp_path_factory) -> Path:
-    """A gravity-aligned campaign of 10 power cycles (24 s each), labelled: enough for the
-    paper-gravity protocol's 5 folds."""
-    tmp = tmp_path_factory.mktemp("full-disk")
-    simulate_campaign(load_config("gravity-aligned", {"sessions": 10, "stationary_s": [24.0, 24.0]}),
-                      tmp / "raw" / "ga", seed=6, jobs=2, progress=False)
-    outcomes = label_sessions(expand_sessions([tmp / "raw" / "ga"]), LabelParams(min_samples=2000),
-                              tmp / "labels", jobs=2, progress=False)
-    assert [o.error for o in outcomes if o.error] == []
-    return tmp
+def labelled(labelled_campaigns: Path) -> Path:
+    """A gravity-aligned campaign of 10 power cycles (24 s each), labelled, in ``raw/ga`` and
+    ``labels/ga``: enough for the paper-gravity protocol's 5 folds (the session's, conftest.py)."""
+    return labelled_campaigns
 
 
 def _build(labelled: Path, out: Path) -> list[str]:

@@ -236,13 +236,10 @@ def test_ctrl_c_at_any_moment_of_ofbe_label(reference, tmp_path: Path) -> None:
 
 
 @pytest.fixture(scope="module")
-def wear(tmp_path_factory: pytest.TempPathFactory) -> list[str]:
-    """Three recordings of the ``tiny-free-living`` campaign for ``ofbe-autocal``: two epoch csv
-    files and one csv of samples (as ``test_autocal_jobs.py``)."""
-    from ofbe_data.simulator import simulate_campaign
-
-    root = tmp_path_factory.mktemp("wear")
-    simulate_campaign("tiny-free-living", root / "tfl", progress=False)
+def wear(tiny_free_living: Path) -> list[str]:
+    """Three recordings of the session's ``tiny-free-living`` campaign (conftest.py) for
+    ``ofbe-autocal``: two epoch csv files and one csv of samples (as ``test_autocal_jobs.py``)."""
+    root = tiny_free_living
     return [str(root / "tfl" / "epochs" / "wear-001.csv"), str(root / "tfl" / "epochs" / "wear-002.csv"),
             str(root / "tfl" / "wear-003" / "rec-01" / "wear-003.csv")]
 

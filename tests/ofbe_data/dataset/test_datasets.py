@@ -21,10 +21,7 @@ from ofbe_data.dataset.store import ChecksumError, export_dataset, load_dataset
 from ofbe_data.dataset.windows import SegmentError, WindowParams, cut_windows, iter_windows, n_windows
 from ofbe_data.io.formats import read_device_file
 from ofbe_data.io.manifest import load_manifest
-from ofbe_data.labelling.batch import expand_sessions, label_sessions
-from ofbe_data.labelling.labels import LabelParams
 from ofbe_data.labelling.store import read_labels
-from ofbe_data.simulator import load_config, simulate_campaign
 from tests.helpers.other_tools import (
     assert_croissant_matches,
     assert_hugging_face_matches,
@@ -41,25 +38,18 @@ PARAMS = DatasetParams(window_length=T, stride=T)
 
 
 @pytest.fixture(scope="module")
-def campaigns(tmp_path_factory) -> Path:
+def campaigns(labelled_campaigns: Path) -> Path:
     """A rotated campaign (2 devices × 48 recordings, 48 tilts, a power cycle every 3) and a
-    gravity-aligned one (4 devices × 10), about 24 s stationary each, labelled."""
-    tmp = tmp_path_factory.mktemp("ds")
-    simulate_campaign(load_config("rotated", {"sessions": 16, "stationary_s": [23.5, 24.5]}),
-                      tmp / "raw" / "rot", seed=5, jobs=2, progress=False)
-    simulate_campaign(load_config("gravity-aligned", {"sessions": 10, "stationary_s": [24.0, 24.0]}),
-                      tmp / "raw" / "ga", seed=6, jobs=2, progress=False)
-    outcomes = label_sessions(expand_sessions([tmp / "raw" / "rot", tmp / "raw" / "ga"]),
-                              LabelParams(min_samples=2000), tmp / "labels", jobs=2, progress=False)
-    assert [o.error for o in outcomes if o.error] == []
-    return tmp
+    gravity-aligned one (4 devices × 10), about 24 s stationary each, labelled (the session's,
+    conftest.py: read only)."""
+    return labelled_campaigns
 
 
 @pytest.fixture(scope="module")
-def built(campaigns) -> dict[str, Path]:
-    out = {}
+def built(campaigns, tmp_path_factory) -> dict[str, Path]:
+    out, datasets = {}, tmp_path_factory.mktemp("datasets")
     for c in ("rot", "ga"):
-        out[c] = build_dataset(campaigns / "labels" / c, campaigns / "raw" / c, campaigns / "datasets" / c,
+        out[c] = build_dataset(campaigns / "labels" / c, campaigns / "raw" / c, datasets / c,
                                PARAMS, truth_dir=campaigns / "raw" / c / "_truth", jobs=2,
                                progress=False).path
     return out

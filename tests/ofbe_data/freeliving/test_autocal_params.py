@@ -28,7 +28,6 @@ from ofbe_data.freeliving.params import (
     params_yaml,
     with_overrides,
 )
-from ofbe_data.simulator import simulate_campaign
 from tests.helpers.paths import ROOT
 
 EXAMPLE = ROOT / "examples" / "autocal.yaml"
@@ -38,12 +37,9 @@ SPHERE = "recalibration not done because the sphere is not populated: no still e
 
 
 @pytest.fixture(scope="module")
-def wear(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """The epochs folder of two simulated recordings."""
-    root = tmp_path_factory.mktemp("wear")
-    simulate_campaign("tiny-free-living", root / "fl", progress=False,
-                      overrides={"sessions": 2, "free_living": {"days": 0.4, "output": "epochs"}})
-    return root / "fl" / "epochs"
+def wear(short_free_living: Path) -> Path:
+    """The epochs folder of two simulated recordings (the session's, conftest.py: read only)."""
+    return short_free_living / "fl" / "epochs"
 
 
 def _rows(out: Path) -> dict[str, dict[str, str]]:

@@ -11,6 +11,7 @@ with the ``full`` model; both calibrated in ``--mode ggir``), and an epoch csv o
 from __future__ import annotations
 
 import csv
+import shutil
 import struct
 import zlib
 from pathlib import Path
@@ -20,18 +21,16 @@ import pytest
 
 from ofbe_data.cli.autocal import main
 from ofbe_data.freeliving.plots import calibrated_means, plot_data
-from ofbe_data.simulator import simulate_campaign
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 
 @pytest.fixture(scope="module")
-def wear(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """Two simulated recordings' epochs and a file of movement (no epoch below 13 mg)."""
-    root = tmp_path_factory.mktemp("wear")
-    simulate_campaign("tiny-free-living", root / "fl", progress=False,
-                      overrides={"sessions": 2, "free_living": {"days": 0.4, "output": "epochs"}})
-    folder = root / "fl" / "epochs"
+def wear(short_free_living: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Two simulated recordings' epochs (a copy of the session's, conftest.py) and a file of
+    movement (no epoch below 13 mg) beside them."""
+    folder = tmp_path_factory.mktemp("wear") / "epochs"
+    shutil.copytree(short_free_living / "fl" / "epochs", folder)
     rng = np.random.default_rng(5)
     moving = np.column_stack([rng.normal(0.0, 0.6, (60, 3)), rng.uniform(0.05, 0.3, (60, 3)),
                               np.full(60, 25.0)])

@@ -12,9 +12,6 @@ import pandas as pd
 import pytest
 
 from ofbe_data.dataset.build import DatasetParams, build_dataset
-from ofbe_data.labelling.batch import expand_sessions, label_sessions
-from ofbe_data.labelling.labels import LabelParams
-from ofbe_data.simulator import load_config, simulate_campaign
 from ofbe_model import predict as predict_cli
 from ofbe_model.benchmark.report import summarise, write_report
 from ofbe_model.benchmark.runner import BenchmarkParams, WindowCache, run_protocol
@@ -31,24 +28,20 @@ FAST = ("level-mean", "ls-trf", "won2009", "prior-mean", "gravity-prior", "oracl
 
 
 @pytest.fixture(scope="module")
-def rotated(tmp_path_factory) -> tuple[Path, Path]:
-    """2 devices × 48 tilted recordings (a power cycle every 3), windows of 1000 samples."""
-    tmp = tmp_path_factory.mktemp("bench")
-    simulate_campaign(load_config("rotated", {"sessions": 16, "stationary_s": [23.5, 24.5]}),
-                      tmp / "raw", seed=11, jobs=2, progress=False)
-    outcomes = label_sessions(expand_sessions([tmp / "raw"]), LabelParams(min_samples=2000), tmp / "labels",
-                              jobs=2, progress=False)
-    assert [o.error for o in outcomes if o.error] == []
-    build_dataset(tmp / "labels" / "raw", tmp / "raw", tmp / "ds", DatasetParams(window_length=T, stride=T),
-                  progress=False)
-    return tmp, tmp / "ds"
+def rotated(labelled_campaigns: Path, tmp_path_factory) -> tuple[Path, Path]:
+    """2 devices × 48 tilted recordings (a power cycle every 3; the session's rotated campaign,
+    conftest.py: ``raw`` is its folder), windows of 1000 samples in a dataset of this module's."""
+    ds = tmp_path_factory.mktemp("bench") / "ds"
+    build_dataset(labelled_campaigns / "labels" / "rot", labelled_campaigns / "raw" / "rot", ds,
+                  DatasetParams(window_length=T, stride=T), progress=False)
+    return labelled_campaigns / "raw" / "rot", ds
 
 
 @pytest.fixture(scope="module")
 def grouped_run(rotated):
     tmp, ds = rotated
     pred, seconds = run_protocol(ds, "grouped", BenchmarkParams(methods=FAST),
-                                 truth_dir=tmp / "raw" / "_truth", progress=False)
+                                 truth_dir=tmp / "_truth", progress=False)
     return pred, seconds, summarise(pred)
 
 
@@ -57,7 +50,7 @@ def test_every_method_predicts_every_test_signal(rotated, grouped_run) -> None:
     assert set(pred["method"]) == set(FAST) and set(seconds) == set(FAST)
     per = pred.groupby("method").size()
     assert per.nunique() == 1 and per.iloc[0] == 96  # every recording is tested once under grouped
-    assert set(pred["dataset"]) == {"raw/sparkfun-1", "raw/sparkfun-2"}
+    assert set(pred["dataset"]) == {"rot/sparkfun-1", "rot/sparkfun-2"}
     assert np.isfinite(pred[["yhat_x", "yhat_y", "yhat_z"]].to_numpy()).all()
 
 
@@ -81,7 +74,7 @@ def test_report_files(tmp_path, grouped_run) -> None:
     assert {"benchmark.json", "benchmark.md", "errors.csv", "rmse.png", "max_error.png",
             "t_ls-trf.png"} <= names
     doc = json.loads((tmp_path / "rep" / "benchmark.json").read_text())
-    m = doc["datasets"]["raw/sparkfun-1"]["methods"]["gravity-prior"]
+    m = doc["datasets"]["rot/sparkfun-1"]["methods"]["gravity-prior"]
     assert len(m["rmse_folds"]) == 5 and set(m["t_test"]) == {"ls-trf", "won2009"}
     assert "| Dataset | Sensors | Method |" in (tmp_path / "rep" / "benchmark.md").read_text()
 
@@ -98,17 +91,17 @@ def test_a_window_two_protocols_test_is_solved_once_with_the_same_estimate(rotat
     tmp, ds = rotated
     params = BenchmarkParams(methods=("ls-trf", "won2009", "gravity-prior", "oracle"))
     cache = WindowCache()
-    truth = tmp / "raw" / "_truth"
+    truth = tmp / "_truth"
     first, _ = run_protocol(ds, "grouped", params, truth_dir=truth, progress=False, cache=cache)
     solved = cache.solved
     assert solved == 2 * 96 and cache.reused == 0  # ls-trf and won2009 (per window); the others are fitted
-    second, _ = run_protocol(ds, "paper-rotated", params, truth_dir=tmp / "raw" / "_truth", progress=False,
+    second, _ = run_protocol(ds, "paper-rotated", params, truth_dir=tmp / "_truth", progress=False,
                              cache=cache)
     assert cache.solved == solved and cache.reused == 2 * second["window_id"].nunique()
-    alone, _ = run_protocol(ds, "paper-rotated", params, truth_dir=tmp / "raw" / "_truth", progress=False,
+    alone, _ = run_protocol(ds, "paper-rotated", params, truth_dir=tmp / "_truth", progress=False,
                             cache=WindowCache())
     pd.testing.assert_frame_equal(second, alone)
-    pd.testing.assert_frame_equal(first, run_protocol(ds, "grouped", params, truth_dir=tmp / "raw" / "_truth",
+    pd.testing.assert_frame_equal(first, run_protocol(ds, "grouped", params, truth_dir=tmp / "_truth",
                                                       progress=False, cache=WindowCache())[0])
     # another parameter is another estimator: solved afresh
     variant = BenchmarkParams(methods=("won2009-min-norm",),
@@ -140,7 +133,7 @@ def test_predict_with_a_saved_gravity_prior(rotated, tmp_path, capsys) -> None:
     model = GravityPrior().fit(data.X, data.y, data.meta)
     path = tmp_path / "gp.json"
     model.save(path)
-    session = tmp / "raw" / "rot-pc001"
+    session = tmp / "rot-pc001"
     assert predict_main([str(path), str(session), "--window-length", str(T)]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["method"] == "gravity-prior" and len(out["results"]) == 6  # 3 recordings × 2 DUTs
@@ -164,7 +157,7 @@ def test_predict_on_a_bare_file(rotated, tmp_path, capsys) -> None:
     data = load_dataset(ds)
     path = tmp_path / "gp.json"
     GravityPrior().fit(data.X, data.y, data.meta).save(path)
-    bare = tmp / "raw" / "rot-pc001" / "rec-01" / "sparkfun-1.csv"
+    bare = tmp / "rot-pc001" / "rec-01" / "sparkfun-1.csv"
     assert predict_main([str(path), str(bare), "--device", "sparkfun-1", "--g-local", "9.80",
                              "--window-length", str(T)]) == 0
     (r,) = json.loads(capsys.readouterr().out)["results"]
@@ -181,7 +174,7 @@ def test_predict_says_what_the_model_was_trained_on_and_refuses_another_rate(rot
 
     tmp, ds = rotated
     data = load_dataset(ds)
-    session = tmp / "raw" / "rot-pc001"
+    session = tmp / "rot-pc001"
     meta = data.meta.copy()
     meta["fs_hz"] = 400.0  # as if trained on 400 Hz loggers; the session's DUTs run at 150 Hz
     meta["device"] = meta["device"].str.replace("sparkfun-2", "other-unit")
@@ -224,7 +217,7 @@ def test_predict_refuses_a_gravity_direction_it_never_saw_and_non_finite_flags(r
     assert 0 < level.sum() < len(u)
     path = tmp_path / "gp.json"
     GravityPrior().fit(data.X[level], data.y[level], data.meta[level].reset_index(drop=True)).save(path)
-    session = tmp / "raw" / "rot-pc001"
+    session = tmp / "rot-pc001"
     code = predict_main([str(path), str(session), "--window-length", str(T)])
     out = json.loads(capsys.readouterr().out)["results"]
     tilted = [r for r in out if "error" in r and "gravity direction" in r["error"]]

@@ -16,21 +16,14 @@ import yaml
 from ofbe_data.calibration.exports import CALIBRATION_FORMATS, export_formats
 from ofbe_data.calibration.registry import ENTRY_POINT_GROUP
 from ofbe_data.cli import export
-from ofbe_data.labelling.batch import expand_sessions, label_sessions
-from ofbe_data.labelling.labels import LabelParams
-from ofbe_data.simulator import load_config, simulate_campaign
 from ofbe_model.cli.export_formats import C_HEADER, TFLITE
 from ofbe_model.predict import predict, targets
 
 
 @pytest.fixture(scope="module")
-def campaign(tmp_path_factory) -> Path:
-    tmp = tmp_path_factory.mktemp("export")
-    simulate_campaign(load_config("tiny-gravity-aligned"), tmp / "raw" / "ga", seed=2, jobs=1, progress=False)
-    outcomes = label_sessions(expand_sessions([tmp / "raw" / "ga"]), LabelParams(min_samples=1000),
-                              tmp / "labels", jobs=1, progress=False)
-    assert [o.error for o in outcomes if o.error] == []
-    return tmp
+def campaign(tiny_labelled) -> Path:
+    """The session's tiny labelled campaigns (conftest.py); this module reads ``raw/ga``, ``labels/ga``."""
+    return tiny_labelled
 
 
 class _MeanMinusGravity:
@@ -48,14 +41,14 @@ class _MeanMinusGravity:
 
 
 @pytest.fixture(scope="module")
-def predictions(campaign) -> Path:
+def predictions(campaign, tmp_path_factory) -> Path:
     """The JSON ofbe-predict prints for the gravity-aligned sessions, plus one entry without
     an estimate."""
     model = _MeanMinusGravity()
     items = targets(sorted((campaign / "raw" / "ga").glob("ga-pc*")), None, None)
     results = predict(model, items, 1000)
     results.append({"file": "broken.csv", "device": "sparkfun-1", "g_local": 9.8, "error": "no data"})
-    path = campaign / "predictions.json"
+    path = tmp_path_factory.mktemp("predictions") / "predictions.json"
     path.write_text(json.dumps({"model": "stub.json", "method": model.name, "trained_on": None,
                                 "results": results}, indent=1))
     return path

@@ -602,7 +602,7 @@ def test_one_pool_over_several_protocols_and_workers_trains_what_one_worker_on_e
 
     data = tmp_path / "two"
     _tiny_dataset(data, two_protocols=True)
-    common = ["--folds", "0", "--max-epochs", "2", "--quiet"]
+    common = ["--folds", "0", "--max-epochs", "1", "--quiet"]
     for protocol in ("grouped", "paper-rotated"):
         assert main([str(data), "--protocol", protocol, "--out", str(tmp_path / "alone"), "--jobs", "1",
                      *common]) == 0
