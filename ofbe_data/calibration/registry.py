@@ -23,6 +23,7 @@ from __future__ import annotations
 import argparse
 from collections.abc import Callable
 from dataclasses import KW_ONLY, dataclass
+from importlib import import_module
 from importlib.metadata import entry_points
 from typing import TYPE_CHECKING
 
@@ -51,7 +52,9 @@ class Format:
     ----------
     handler
         Turns the parsed arguments into the files to write (writing, ``--out``, ``--force``
-        and ``--store`` are shared: :func:`ofbe_data.calibration.output.write_outputs`).
+        and ``--store`` are shared: :func:`ofbe_data.calibration.output.write_outputs`): the
+        function, or where it is, ``"module:function"``, imported when the format runs
+        (:meth:`files`), so that listing the formats imports none of their work.
     help
         One line: what the format is.
     options
@@ -70,7 +73,7 @@ class Format:
         them, by name.
     """
 
-    handler: Callable[[argparse.Namespace], list[ExportFile]]
+    handler: Callable[[argparse.Namespace], list[ExportFile]] | str
     help: str
     options: Callable[[argparse.ArgumentParser], None] | None = None
     examples: tuple[str, ...] = ()
@@ -78,6 +81,15 @@ class Format:
     _: KW_ONLY
     name: str = ""
     order: int = 100
+
+    def files(self, args: argparse.Namespace) -> list[ExportFile]:
+        """The files this format makes of the parsed arguments (its handler, imported now when
+        it is given as ``"module:function"``)."""
+        handler = self.handler
+        if isinstance(handler, str):
+            module, _, function = handler.partition(":")
+            handler = getattr(import_module(module), function)
+        return handler(args)
 
 
 @dataclass(frozen=True)

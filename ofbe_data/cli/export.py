@@ -129,7 +129,7 @@ def _run(args: argparse.Namespace, formats: dict[str, Format]) -> int:
     if args.out is None and args.store is None:
         return fail(PROG, "expected --out PATH or --store DIR (or both), found neither", EXIT_USAGE)
     try:
-        files = formats[args.format].handler(args)
+        files = formats[args.format].files(args)
         written = write_outputs(files, args.out, args.store, args.force,
                                 out_is_folder=str(raw_out or "").endswith(("/", os.sep)))
     except ExportUsageError as exc:

@@ -5,19 +5,9 @@ made by :func:`ofbe_data.calibration.handlers.ggir_files`."""
 from __future__ import annotations
 
 import argparse
-from typing import TYPE_CHECKING
 
 from ofbe_data.calibration.defaults import GGIR_CONVENTIONS
 from ofbe_data.calibration.registry import Format
-
-if TYPE_CHECKING:
-    from ofbe_data.calibration.output import ExportFile
-
-
-def _files(args: argparse.Namespace) -> list[ExportFile]:
-    from ofbe_data.calibration.handlers import ggir_files
-
-    return ggir_files(args)
 
 
 def _options(p: argparse.ArgumentParser) -> None:
@@ -29,8 +19,15 @@ def _options(p: argparse.ArgumentParser) -> None:
                         "settings in OUT/ggir-data.README.txt")
 
 
-FORMAT = Format(_files, "GGIR backup.cal.coef CSV, one per run: scale.*, offset.* (g, GGIR's sign)", _options,
-                ("ofbe-export ggir mine/labels/lab --out mine/ggir/",
-                 "ofbe-export ggir mine/labels/lab --raw mine/raw/lab --ggir-data --out mine/ggir/",
-                 "ofbe-export ggir mine/autocal --out mine/ggir/   # an ofbe-autocal folder"),
-                name="ggir", order=40)
+FORMAT = Format(
+    name="ggir",
+    order=40,
+    handler="ofbe_data.calibration.handlers:ggir_files",
+    help="GGIR backup.cal.coef CSV, one per run: scale.*, offset.* (g, GGIR's sign)",
+    options=_options,
+    examples=(
+        "ofbe-export ggir mine/labels/lab --out mine/ggir/",
+        "ofbe-export ggir mine/labels/lab --raw mine/raw/lab --ggir-data --out mine/ggir/",
+        "ofbe-export ggir mine/autocal --out mine/ggir/   # an ofbe-autocal folder",
+    ),
+)

@@ -6,19 +6,9 @@ from __future__ import annotations
 
 import argparse
 import math
-from typing import TYPE_CHECKING
 
 from ofbe_data.calibration.defaults import DEFAULT_ROSTOPIC
 from ofbe_data.calibration.registry import Format
-
-if TYPE_CHECKING:
-    from ofbe_data.calibration.output import ExportFile
-
-
-def _files(args: argparse.Namespace) -> list[ExportFile]:
-    from ofbe_data.calibration.handlers import kalibr_files
-
-    return kalibr_files(args)
 
 
 def positive_number(text: str) -> float:
@@ -42,8 +32,12 @@ def _options(p: argparse.ArgumentParser) -> None:
                         "gyroscope columns (or their flagged upper bound)")
 
 
-FORMAT = Format(_files, "Kalibr imu.yaml: accelerometer and gyroscope noise density and random walk "
-                        "from the Allan deviation (gyroscope from its columns or flags); needs --raw",
-                _options,
-                ("ofbe-export kalibr processed/labels/rotated --raw raw/rotated --out mine/kalibr/",),
-                name="kalibr", order=20)
+FORMAT = Format(
+    name="kalibr",
+    order=20,
+    handler="ofbe_data.calibration.handlers:kalibr_files",
+    help=("Kalibr imu.yaml: accelerometer and gyroscope noise density and random walk from the Allan "
+          "deviation (gyroscope from its columns or flags); needs --raw"),
+    options=_options,
+    examples=("ofbe-export kalibr processed/labels/rotated --raw raw/rotated --out mine/kalibr/",),
+)

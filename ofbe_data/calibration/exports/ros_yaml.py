@@ -5,20 +5,10 @@ linear-acceleration covariance; the files are made by
 from __future__ import annotations
 
 import argparse
-from typing import TYPE_CHECKING
 
 from ofbe_data.calibration.defaults import DEFAULT_FRAME_ID, ROS_NODE
 from ofbe_data.calibration.registry import Format
 from ofbe_data.calibration.ros_names import ros_node_problem
-
-if TYPE_CHECKING:
-    from ofbe_data.calibration.output import ExportFile
-
-
-def _files(args: argparse.Namespace) -> list[ExportFile]:
-    from ofbe_data.calibration.handlers import ros_files
-
-    return ros_files(args)
 
 
 def _ros_node(text: str) -> str:
@@ -36,6 +26,11 @@ def _options(p: argparse.ArgumentParser) -> None:
                         "file)")
 
 
-FORMAT = Format(_files, "YAML: bias to subtract (m/s²) and linear_acceleration_covariance", _options,
-                ("ofbe-export ros mine/labels/lab --out mine/ros/ --frame-id imu_link",),
-                name="ros", order=30)
+FORMAT = Format(
+    name="ros",
+    order=30,
+    handler="ofbe_data.calibration.handlers:ros_files",
+    help="YAML: bias to subtract (m/s²) and linear_acceleration_covariance",
+    options=_options,
+    examples=("ofbe-export ros mine/labels/lab --out mine/ros/ --frame-id imu_link",),
+)
