@@ -325,6 +325,13 @@ def _scratch_space() -> Iterator[str]:
                     time.sleep(0.1)
 
 
+def _close_whole(embedded: contextlib.ExitStack) -> None:
+    """Close the embedded cluster and its client with Ctrl-C held off: one that comes meanwhile is
+    raised once they are closed (:func:`~ofbe_data.core.atomic.interrupts_deferred`)."""
+    with interrupts_deferred():
+        embedded.close()
+
+
 @contextlib.contextmanager
 def dask_client(scheduler: str, jobs: int, worker_env: Mapping[str, str] | None = None,
                 retries: int = DEFAULT_RETRIES, verbose: bool = False) -> Iterator[tuple[Any, _DeathLog]]:
@@ -375,13 +382,19 @@ def dask_client(scheduler: str, jobs: int, worker_env: Mapping[str, str] | None 
         deaths = stack.enter_context(_quiet(verbose))
         if scheduler == DASK:
             env = {"env": dict(worker_env)} if worker_env else {}
+            # the cluster and its client close whole, before the log levels and the scratch space
+            # are given back: a Ctrl-C while they close waits until they are closed (a close cut
+            # short went on in Dask's own thread, logging on the terminal and racing the removal
+            # of its scratch space)
+            embedded = contextlib.ExitStack()
+            stack.callback(_close_whole, embedded)
             # no dashboard; the scheduler's HTTP server (metrics) on a free port, not on 8787,
             # where another cluster would make Dask warn on the terminal
             with _children_ignore_ctrl_c():
-                cluster = stack.enter_context(distributed.LocalCluster(
+                cluster = embedded.enter_context(distributed.LocalCluster(
                     n_workers=jobs, threads_per_worker=1, processes=True, dashboard_address=None,
                     silence_logs=level, scheduler_kwargs={"dashboard_address": ":0"}, **env))
-            client = stack.enter_context(distributed.Client(cluster))
+            client = embedded.enter_context(distributed.Client(cluster))
         else:
             try:
                 client = stack.enter_context(distributed.Client(scheduler, timeout=_CONNECT_TIMEOUT))
