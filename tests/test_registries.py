@@ -7,6 +7,7 @@ with no other file edited (:func:`ofbe_data.core.plugins.import_submodules`)."""
 
 from __future__ import annotations
 
+import os
 import shutil
 import subprocess
 import sys
@@ -44,6 +45,7 @@ from ofbe_model.estimators import (
     registered_names,
     unregister,
 )
+from tests.helpers.paths import ROOT
 
 TOY = "toy-logger"
 TOY_MAPPING = CsvMapping(columns={"t": "t", "ax": "ax", "ay": "ay", "az": "az"}, skip_rows=1)
@@ -166,7 +168,7 @@ def test_a_reference_format_is_one_the_simulator_and_init_take(toy_format: Forma
 def test_the_docs_test_names_a_registered_format(toy_format: Format) -> None:
     """tests/test_architecture.py checks the names of ``format_names()`` against docs/formats.md: the
     toy is among them (and undocumented)."""
-    docs = (Path(__file__).resolve().parents[1] / "docs" / "formats.md").read_text(encoding="utf-8")
+    docs = (ROOT / "docs" / "formats.md").read_text(encoding="utf-8")
     assert TOY in format_names() and [n for n in format_names() if f"`{n}`" not in docs] == [TOY]
 
 
@@ -223,8 +225,6 @@ def test_the_estimator_names_list_ofbenet_without_starting_tensorflow() -> None:
 
 # -- extension by one file: a module dropped into a copy of the package ---------------------------
 
-ROOT = Path(__file__).resolve().parents[1]
-
 
 def _copy_with(tmp_path: Path, package: str, files: dict[str, str]) -> Path:
     """A copy of ``package`` (ofbe_data or ofbe_model) under ``tmp_path`` with ``files`` (path
@@ -236,7 +236,7 @@ def _copy_with(tmp_path: Path, package: str, files: dict[str, str]) -> Path:
 
 
 def _run(path: Path, code: str) -> list[str]:
-    env = {k: v for k, v in __import__("os").environ.items() if k != "PYTHONPATH"}
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
     out = subprocess.run([sys.executable, "-c", textwrap.dedent(code)], capture_output=True, text=True,
                          timeout=600, cwd=path, env={**env, "PYTHONPATH": str(path)})
     assert out.returncode == 0, out.stderr
