@@ -50,7 +50,7 @@ from ofbe_data.core.scheduler import (
 )
 from ofbe_data.core.worker_setup import init_worker
 
-__all__ = ["TaskError", "TaskFailure", "iter_ordered", "map_progress"]
+__all__ = ["TaskError", "TaskFailure", "iter_ordered", "kept_workers", "map_progress"]
 
 T = TypeVar("T")
 R = TypeVar("R")
@@ -152,9 +152,10 @@ class _Pool:
         How many may run at once.
     """
 
-    def __init__(self, context: Any, env: Mapping[str, str], size: int) -> None:
+    def __init__(self, context: Any, env: Mapping[str, str], size: int, keep: bool = False) -> None:
         self.context, self.env, self.size = context, env, size
-        self.workers: list[_Worker] = []
+        self.key = _spawn_key(env) if keep else None
+        self.workers: list[_Worker] = _adopt(self.key)
 
     @property
     def busy(self) -> list[_Worker]:
@@ -232,9 +233,21 @@ class _Pool:
 
     def stop(self, finished: bool) -> None:
         """End every worker: told to once the run ``finished``; else at once, with SIGTERM (the
-        task ends with its clean-up), then SIGKILL for any still running after :data:`STOP_S`."""
+        task ends with its clean-up), then SIGKILL for any still running after :data:`STOP_S`.
+        Inside :func:`kept_workers`, a finished run's workers are kept instead."""
+        if finished and self.key is not None and _KEPT is not None:
+            _KEPT.setdefault(self.key, []).extend(self.workers)
+            self.workers = []
+            return
+        _end(self.workers, finished)
+        self.workers = []
+
+
+def _end(workers: list[_Worker], finished: bool) -> None:
+    """End ``workers`` (:meth:`_Pool.stop`)."""
+    if workers:
         with interrupts_deferred():
-            for w in self.workers:
+            for w in workers:
                 if finished:
                     # a worker whose pipe is gone has died already: the join and kill below end it
                     with contextlib.suppress(OSError):
@@ -242,14 +255,78 @@ class _Pool:
                 else:
                     w.process.terminate()
             deadline = time.monotonic() + STOP_S
-            for w in self.workers:
+            for w in workers:
                 w.process.join(max(0.0, deadline - time.monotonic()))
-            for w in self.workers:
+            for w in workers:
                 if w.process.exitcode is None:
                     w.process.kill()
                     w.process.join(STOP_S)
                 w.conn.close()
-            self.workers.clear()
+
+
+_SpawnKey = tuple[str, tuple[str, ...], tuple[tuple[str, str], ...]]
+_KEPT: dict[_SpawnKey, list[_Worker]] | None = None
+"""Inside :func:`kept_workers`: the idle spawned workers of finished runs, by :func:`_spawn_key`."""
+
+
+_PER_CALL = frozenset({"PYTEST_CURRENT_TEST"})
+"""Environment variables that change from call to call without meaning anything to a worker
+(pytest names the running test in one)."""
+
+
+def _spawn_key(env: Mapping[str, str]) -> _SpawnKey:
+    """What a spawned worker started with and keeps: this process's working folder, ``sys.path``
+    and environment (but :data:`_PER_CALL`), ``env`` over it. A kept worker serves only a call
+    that would start the same."""
+    environ = {k: v for k, v in os.environ.items() if k not in _PER_CALL}
+    return os.getcwd(), tuple(sys.path), tuple(sorted({**environ, **env}.items()))
+
+
+def _adopt(key: _SpawnKey | None) -> list[_Worker]:
+    """The kept workers started as ``key`` that are still alive (none outside
+    :func:`kept_workers`); those that died while idle are ended and forgotten."""
+    if key is None or _KEPT is None:
+        return []
+    kept = _KEPT.pop(key, [])
+    alive = [w for w in kept if w.process.is_alive()]
+    _end([w for w in kept if w not in alive], finished=False)
+    return alive
+
+
+@contextlib.contextmanager
+def kept_workers() -> Iterator[None]:
+    """Keep spawned workers from one call to the next, within this block.
+
+    Outside it, every :func:`map_progress` or :func:`iter_ordered` call with a ``worker_env``
+    starts its own fresh worker processes and ends them when it returns. Inside it, the workers
+    of a call that finished are kept, idle, and the next call that would start the same workers
+    (the same ``worker_env``, environment, working folder and ``sys.path``) sends its items to
+    them before it starts any: TensorFlow's start in each (several seconds
+    of CPU) is paid once per worker, not once per call, as when a notebook trains several times.
+    A call that fails or is interrupted still ends its workers at once. The results do not
+    change: a kept worker was set up (:func:`~ofbe_data.core.worker_setup.init_worker`) with the
+    same environment, and a task must not depend on what its worker ran before, as it already
+    must not with one worker for many items. The kept workers hold their memory until the
+    block ends, where they are ended; they run the code imported when they started, so leave
+    the block after editing a task's module. Nested blocks are one block.
+
+    Examples
+    --------
+    >>> from ofbe_data.core.parallel import kept_workers
+    >>> with kept_workers():  # doctest: +SKIP
+    ...     train_many(["processed/datasets/rotated"], ["grouped"], "models/a", params, jobs=2)
+    ...     train_many(["processed/datasets/rotated"], ["grouped"], "models/b", params, jobs=2)
+    """
+    global _KEPT
+    if _KEPT is not None:
+        yield
+        return
+    _KEPT = {}
+    try:
+        yield
+    finally:
+        kept, _KEPT = _KEPT, None
+        _end([w for workers in kept.values() for w in workers], finished=True)
 
 
 def _verbose() -> bool:
@@ -277,7 +354,7 @@ def _pool_outcomes(fn: Callable[[Any], Any], items: Sequence[Any], workers: int,
     reading), every worker is stopped at once (:meth:`_Pool.stop`) before it goes on.
     """
     context = multiprocessing.get_context("spawn" if worker_env is not None else None)
-    pool = _Pool(context, dict(worker_env or {}), workers)
+    pool = _Pool(context, dict(worker_env or {}), workers, keep=worker_env is not None)
     waiting = list(range(len(items)))  # a heap: the items to run, the next one first
     deaths: dict[int, int] = {}
     finished = False
@@ -374,9 +451,10 @@ def map_progress(fn: Callable[[T], R], items: Sequence[T], *, jobs: int = 1, des
     progress
         Show the bar.
     worker_env
-        Environment of fresh worker processes (``spawn`` ones for ``processes``; on Dask, a
-        spawned process of each worker, kept for its next tasks,
-        :func:`~ofbe_data.core.scheduler.run_isolated`), set before they import anything and
+        Environment of fresh worker processes (``spawn`` ones for ``processes``, this call's
+        own unless inside :func:`kept_workers`; on Dask, a spawned process of each worker, kept
+        for its next tasks, :func:`~ofbe_data.core.scheduler.run_isolated`), set before they
+        import anything and
         used for every item whatever ``jobs``: for libraries whose results depend on settings
         read once at start-up, such as TensorFlow's thread counts, or that draw from Python's
         global ``random`` (which a Dask worker's own threads draw from too), so that the same

@@ -63,7 +63,6 @@ from ofbe_data.core.parallel import map_progress
 from ofbe_data.dataset.folds import Split, protocol_splits
 from ofbe_data.dataset.reader import load_dataset
 from ofbe_data.io.typedconfig import from_plain, read_section
-from ofbe_model.ofbenet.network import OFBENet
 from ofbe_model.ofbenet.params import WORKER_ENV, OFBENetParams
 
 PROG = "ofbe-train"
@@ -238,6 +237,10 @@ def train_fold(x: np.ndarray, y: np.ndarray, meta: pd.DataFrame, split: Split, p
     history
         The per-epoch history (for the training-curve figure).
     """
+    # imported here, in the fit's worker: the process that schedules the fits (ofbe-train, the
+    # deploy stage) never loads TensorFlow (8 s of CPU and about 0.5 GB each)
+    from ofbe_model.ofbenet.network import OFBENet
+
     name = model_name(split.fold, params.seed)
     stem = name.removesuffix(".keras")
     t0 = time.perf_counter()

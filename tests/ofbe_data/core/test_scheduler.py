@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from ofbe_data.core import scheduler as scheduler_module
-from ofbe_data.core.parallel import TaskError, TaskFailure, iter_ordered, map_progress
+from ofbe_data.core.parallel import TaskError, TaskFailure, iter_ordered, kept_workers, map_progress
 from ofbe_data.core.scheduler import SchedulerError, check_scheduler
 from tests.helpers.paths import ROOT
 
@@ -257,3 +257,58 @@ def test_a_bad_scheduler_is_a_usage_error_naming_the_flag(prog: str, capsys, tmp
     assert err[-1] == (f"{prog}{sub}: error: argument --scheduler: expected processes, dask or a Dask "
                        "scheduler address (tcp://host:port), found 'spark://x'")
     assert not any(tmp_path.iterdir())
+
+
+# ----------------------------------------------------------------------------- kept workers
+
+
+def _pid(_: int) -> int:
+    time.sleep(0.2)  # long enough for both workers to take items
+    return os.getpid()
+
+
+def _zombie(pid: int) -> bool:
+    """Whether child ``pid`` has ended (a zombie until its parent reaps it), on Linux."""
+    stat = Path(f"/proc/{pid}/stat")
+    return not stat.exists() or stat.read_text().rsplit(")", 1)[1].split()[0] == "Z"
+
+
+@pytest.mark.slow
+def test_kept_workers_serve_the_next_call_that_would_start_the_same_ones(monkeypatch) -> None:
+    env = {"OFBE_TEST_WORKER_ENV": "set"}
+    outside = [set(map_progress(_pid, range(4), jobs=2, worker_env=env, progress=False)) for _ in (0, 1)]
+    assert not outside[0] & outside[1]  # outside the block, each call starts its own
+    with kept_workers():
+        first = set(map_progress(_pid, range(4), jobs=2, worker_env=env, progress=False))
+        assert len(first) == 2
+        assert set(map_progress(_pid, range(4), jobs=2, worker_env=env, progress=False)) == first
+        assert set(map_progress(_pid, range(2), jobs=1, worker_env=env, progress=False)) < first
+        # another environment, here or given: other workers
+        assert not set(map_progress(_pid, range(2), jobs=1, worker_env={"OFBE_TEST_WORKER_ENV": "other"},
+                                    progress=False)) & first
+        monkeypatch.setenv("OFBE_TEST_PARENT_ENV", "changed")
+        assert not set(map_progress(_pid, range(2), jobs=1, worker_env=env, progress=False)) & first
+        monkeypatch.delenv("OFBE_TEST_PARENT_ENV")
+        # a kept worker that died while idle is replaced, not charged to an item (retries=0)
+        dead = min(first)
+        os.kill(dead, 9)
+        deadline = time.monotonic() + 60
+        while not _zombie(dead) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        again = set(map_progress(_pid, range(4), jobs=2, worker_env=env, retries=0, progress=False))
+        assert dead not in again and max(first) in again and len(again) == 2
+        kept = again
+    # the block ended them all
+    assert all(_zombie(pid) for pid in kept | first) and not os.environ.get("OFBE_TEST_PARENT_ENV")
+
+
+@pytest.mark.slow
+def test_an_interrupted_call_ends_its_workers_inside_the_block_too() -> None:
+    env = {"OFBE_TEST_WORKER_ENV": "set"}
+    with kept_workers():
+        first = set(map_progress(_pid, range(2), jobs=1, worker_env=env, progress=False))
+        stream = iter_ordered(_pid, list(range(6)), jobs=1, worker_env=env)
+        assert next(stream) in first
+        stream.close()  # the consumer stops early: as on Ctrl-C, the worker is stopped at once
+        assert all(_zombie(pid) for pid in first)
+        assert not set(map_progress(_pid, range(2), jobs=1, worker_env=env, progress=False)) & first
