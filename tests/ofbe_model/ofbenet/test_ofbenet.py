@@ -569,13 +569,18 @@ NOISE = ("I0000", "E0000", "W0000", "absl::InitializeLog", "cuda", "oneDNN", "cp
 
 def test_train_and_predict_print_no_tensorflow_start_up_lines(tiny, tmp_path) -> None:
     """The terminal shows progress and results, not TensorFlow's start-up or graph messages;
-    ``--verbose`` (or OFBE_VERBOSE=1) lets them through."""
+    ``--verbose`` (or OFBE_VERBOSE=1) lets them through. ofbe-train's own process never starts
+    TensorFlow (its fits' workers do)."""
     env = {k: v for k, v in os.environ.items() if k not in ("TF_CPP_MIN_LOG_LEVEL", "OFBE_VERBOSE")}
     out = tmp_path / "models"
-    train = subprocess.run([sys.executable, "-m", "ofbe_model.cli.train", str(tiny), "--protocol", "grouped",
+    # ofbe-train's main, then whether this process (not the fit's worker) imported TensorFlow
+    code = ("import sys\nfrom ofbe_model.cli.train import main\ncode = main(sys.argv[1:])\n"
+            "print('tensorflow here:', 'tensorflow' in sys.modules)\nsys.exit(code)\n")
+    train = subprocess.run([sys.executable, "-c", code, str(tiny), "--protocol", "grouped",
                             "--out", str(out), "--folds", "0", "--max-epochs", "1"],
                            capture_output=True, text=True, env=env, cwd=ROOT, timeout=300)
     assert train.returncode == 0, train.stderr[-2000:]
+    assert train.stdout.strip().endswith("tensorflow here: False")  # only the worker starts it
     assert "ofbe-train grouped" in train.stderr and "trained grouped" in train.stderr
     assert not [m for m in NOISE if m in train.stderr], train.stderr[-2000:]
     model = out / "c__d1" / "grouped" / "fold-0.seed-0.keras"
