@@ -301,9 +301,9 @@ def kept_workers() -> Iterator[None]:
     starts its own fresh worker processes and ends them when it returns. Inside it, the workers
     of a call that finished are kept, idle, and the next call that would start the same workers
     (the same ``worker_env``, environment, working folder and ``sys.path``) sends its items to
-    them before it starts any: TensorFlow's start in each (several seconds
-    of CPU) is paid once per worker, not once per call, as when a notebook trains several times.
-    A call that fails or is interrupted still ends its workers at once. The results do not
+    them before it starts any: TensorFlow's start in each (several seconds of CPU) is paid once
+    per worker, not once per call, as when a notebook trains several times. A call that fails
+    or is interrupted still ends its workers at once. The results do not
     change: a kept worker was set up (:func:`~ofbe_data.core.worker_setup.init_worker`) with the
     same environment, and a task must not depend on what its worker ran before, as it already
     must not with one worker for many items. The kept workers hold their memory until the
